@@ -1,0 +1,66 @@
+"""Command line: `python -m dynamics list` and `python -m dynamics show NAME [--latex]`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .model import get_model, list_models
+
+
+def show(name: str, latex: bool = False) -> str:
+    """The derived equations of model `name` as text (pretty) or LaTeX."""
+    import sympy as sp
+    from sympy.physics.vector.printing import VectorPrettyPrinter, vlatex
+
+    pretty_printer = VectorPrettyPrinter({"wrap_line": False, "use_unicode": True})
+
+    def fmt(expr) -> str:
+        return vlatex(expr) if latex else pretty_printer.doprint(sp.sympify(expr))
+
+    model = get_model(name)
+    d = model.derived
+    lines = [f"{name}: coordinates {', '.join(model.coordinates)}"]
+    if model.inputs:
+        lines.append(f"inputs: {', '.join(model.inputs)}")
+    lines.append(
+        "parameters: "
+        + ", ".join(f"{k} = {v:g} {model.units[k]}" for k, v in model.parameters.items())
+    )
+    lines.append("")
+    lines.append("Lagrange's equations (each = 0):")
+    for eq in model.equations():
+        lines.append(fmt(eq))
+    if d.constraint_matrix.rows:
+        lines.append("")
+        lines.append("Nonholonomic constraints (each = 0):")
+        for c in model.spec.constraints:
+            lines.append(fmt(c))
+    for key, expr in d.outputs.items():
+        lines.append("")
+        lines.append(f"{key} =")
+        lines.append(fmt(expr))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m dynamics", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("list", help="list the registered models")
+    p_show = sub.add_parser("show", help="print a model's derived equations")
+    p_show.add_argument("name", help="model name (see `list`)")
+    p_show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
+    args = parser.parse_args(argv)
+    if args.command == "list":
+        print("\n".join(list_models()))
+        return 0
+    try:
+        print(show(args.name, args.latex))
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,165 @@
+"""`Model`: a declared system, its derived equations, and `compile()` to a `System`.
+
+A registered model's cache key hashes the source of this package (models included), the
+sympy version and the model's options, so a warm `compile()` loads the generated module
+without importing sympy or building the model at all.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import importlib
+import importlib.util
+from collections.abc import Callable
+from functools import cache
+from importlib import metadata
+from pathlib import Path
+
+from . import cache as _cache
+from .system import System
+
+_REGISTRY: dict[str, str] = {
+    "two_link_arm": "dynamics.models.arm:two_link_arm",
+    "rolling_disk": "dynamics.models.disk:rolling_disk",
+    "bead_on_rotating_rod": "dynamics.models.bead:bead_on_rotating_rod",
+    "bead_on_driven_rod": "dynamics.models.bead:bead_on_driven_rod",
+}
+
+
+def register(name: str, target: str) -> None:
+    """Register a model factory by import path 'package.module:function'."""
+    _REGISTRY[name] = target
+
+
+_CORE = ("spec.py", "derive.py", "codegen.py", "kernels.py")
+
+
+@cache
+def _code_fingerprint(target: str | None = None) -> str:
+    """Hash of the sympy version, the files that derive and generate code, and the source
+    file of the factory `target` ('module:function') if given."""
+    h = hashlib.sha256(metadata.version("sympy").encode())
+    root = Path(__file__).parent
+    paths = [root / name for name in _CORE]
+    if target is not None:
+        paths.append(Path(importlib.util.find_spec(target.split(":")[0]).origin))
+    for path in paths:
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def list_models() -> list[str]:
+    """Names of the registered models."""
+    return sorted(_REGISTRY)
+
+
+def get_model(name: str, **options) -> Model:
+    """The registered model `name`; `options` go to its factory (e.g. a curve)."""
+    if name not in _REGISTRY:
+        close = difflib.get_close_matches(name, list(_REGISTRY), n=3)
+        hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
+        raise ValueError(f"Unknown model {name!r}.{hint} Known: {', '.join(list_models())}.")
+    return Model(_REGISTRY[name], name=name, options=options)
+
+
+def _import_factory(target: str) -> Callable:
+    module, func = target.split(":")
+    return getattr(importlib.import_module(module), func)
+
+
+class Model:
+    """A mechanical system: its spec (what the book writes) and what is derived from it.
+
+    Build one from a registered name (`get_model`) or from any `ModelSpec` or factory.
+    """
+
+    def __init__(self, spec_or_factory, name: str | None = None, options: dict | None = None):
+        self._options = dict(options or {})
+        if isinstance(spec_or_factory, str):  # a registered 'module:function', imported lazily
+            self._factory = spec_or_factory
+            self._spec = None
+            self._registered = True
+        elif callable(spec_or_factory):
+            self._factory = spec_or_factory
+            self._spec = None
+            self._registered = False
+        else:
+            self._factory = None
+            self._spec = spec_or_factory
+            self._registered = False
+        self.name = name or self.spec.name
+        self._derived = None
+
+    def __repr__(self) -> str:
+        return f"Model({self.name!r})"
+
+    @property
+    def spec(self):
+        if self._spec is None:
+            factory = self._factory
+            if isinstance(factory, str):
+                factory = _import_factory(factory)
+            self._spec = factory(**self._options)
+        return self._spec
+
+    @property
+    def derived(self):
+        if self._derived is None:
+            from .derive import derive
+
+            self._derived = derive(self.spec)
+        return self._derived
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        return tuple(str(q.name) for q in self.spec.coordinates)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(str(u) for u in self.spec.inputs)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {str(k): float(p.default) for k, p in self.spec.parameters.items()}
+
+    @property
+    def units(self) -> dict[str, str]:
+        return {str(k): p.unit for k, p in self.spec.parameters.items()}
+
+    def equations(self):
+        """Lagrange's equations as a sympy Matrix, each entry = 0 (eq. 7.36 form)."""
+        return self.derived.equations
+
+    def mass_matrix(self):
+        return self.derived.mass
+
+    def forcing(self):
+        return self.derived.forcing
+
+    @property
+    def key(self) -> str:
+        """Cache key: everything the generated code depends on."""
+        target = self._factory if isinstance(self._factory, str) else None
+        h = hashlib.sha256(_code_fingerprint(target).encode())
+        if self._registered:
+            h.update(self.name.encode())
+            if self._options:
+                import sympy as sp
+
+                h.update(sp.srepr(sorted(self._options.items())).encode())
+        else:
+            h.update(self.spec.fingerprint().encode())
+        return h.hexdigest()
+
+    def compile(self, **params) -> System:
+        """A `System` with these parameter values (defaults otherwise), from the cache
+        when possible; deriving and generating code only when it is not there."""
+        key = self.key
+        module = _cache.load(self.name, key)
+        if module is None:
+            from .codegen import generate
+
+            module = _cache.load(self.name, key, generate(self.derived, key))
+        return System(module, params)

@@ -1,0 +1,116 @@
+"""How a model is declared: the four steps of section 7.1 written as data.
+
+A `ModelSpec` holds what a textbook asks for: generalised coordinates, kinetic and potential
+energy, non-conservative generalised forces (inputs appear in them as plain symbols),
+nonholonomic (Pfaffian) constraints, coordinates whose motion is prescribed in time
+(rheonomic driving), and parameters with SI defaults. Nothing here derives anything.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+import sympy.physics.mechanics as me
+
+t = me.dynamicsymbols._t
+"""The time symbol of every model (the one `dynamicsymbols` differentiate by)."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """A model parameter: SI default, unit, meaning; `positive` ones must be > 0."""
+
+    default: float
+    unit: str
+    doc: str = ""
+    positive: bool = True
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A mechanical system as chapter 7 formulates it.
+
+    coordinates: generalised coordinates (dynamicsymbols), in the order of the state.
+    kinetic, potential: T and V in the coordinates, their rates, parameters and time `t`.
+    forces: non-conservative generalised forces Q_s by coordinate (see `generalized_forces`).
+    inputs: plain symbols (torques, forces) that appear in `forces`.
+    parameters: symbol -> Param.
+    constraints: Pfaffian constraints sum_s B_rs qdot_s + b_r = 0, each an expression that
+        must vanish, linear in the coordinate rates (eq. 7.36 adds lambda_r B_rs).
+    prescribed: coordinates whose motion is given as a function of `t` (rheonomic driving);
+        T, V and forces may use them, and the generalised force that keeps them on their
+        schedule is reported as an output named `reaction_<name>`.
+    outputs: further named expressions of q, qdot, qddot, t, inputs (reported by the system).
+    """
+
+    name: str
+    coordinates: tuple
+    kinetic: sp.Expr
+    potential: sp.Expr
+    parameters: Mapping
+    inputs: tuple = ()
+    forces: Mapping = field(default_factory=dict)
+    constraints: tuple = ()
+    prescribed: Mapping = field(default_factory=dict)
+    outputs: Mapping = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self):
+        coords = set(self.coordinates) | set(self.prescribed)
+        for q in self.forces:
+            if q not in coords:
+                raise ValueError(f"{self.name}: force given for {q}, which is not a coordinate.")
+        if len(set(self.coordinates)) != len(self.coordinates):
+            raise ValueError(f"{self.name}: repeated coordinate in {self.coordinates}.")
+        names = [str(s) for s in self.parameters] + [str(s) for s in self.inputs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"{self.name}: parameter and input names must be unique: {names}.")
+
+    def fingerprint(self) -> str:
+        """A canonical text of everything that determines the derived equations."""
+        parts = [
+            self.name,
+            sp.srepr(tuple(self.coordinates)),
+            sp.srepr(self.kinetic),
+            sp.srepr(self.potential),
+            sp.srepr(tuple(self.inputs)),
+            sp.srepr(sorted(((sp.srepr(k), sp.srepr(v)) for k, v in self.forces.items()))),
+            sp.srepr(tuple(self.constraints)),
+            sp.srepr(sorted(((sp.srepr(k), sp.srepr(v)) for k, v in self.prescribed.items()))),
+            sp.srepr(sorted(((k, sp.srepr(v)) for k, v in self.outputs.items()))),
+            repr(sorted((str(k), v) for k, v in self.parameters.items())),
+        ]
+        return "\n".join(parts)
+
+
+def generalized_forces(
+    coordinates: Sequence, applied: Iterable, frame: me.ReferenceFrame | None = None
+) -> dict:
+    """Generalised forces of given forces and torques by virtual work (eq. 6.15).
+
+    Q_s = sum_i F_i . d(v_i)/d(qdot_s): each entry of `applied` is a pair (velocity, force),
+    the velocity of the point the force acts on (or the angular velocity of the body a torque
+    acts on) and the force (or torque). Both may be sympy.physics.vector Vectors in `frame`,
+    or column Matrices of Cartesian components (e.g. the time derivative of a position given
+    by transformation equations). Returns {coordinate: Q_s}.
+    """
+    coordinates = list(coordinates)
+    rates = [q.diff(t) for q in coordinates]
+    Q = {q: sp.S.Zero for q in coordinates}
+    for velocity, force in applied:
+        if isinstance(velocity, me.Vector):
+            if frame is None:
+                raise ValueError("generalized_forces needs `frame` for Vector arguments.")
+            partials = me.partial_velocity([velocity], rates, frame)[0]
+            for q, vq in zip(coordinates, partials):
+                Q[q] += vq.dot(force)
+        else:
+            v = sp.Matrix(velocity)
+            f = sp.Matrix(force)
+            if v.shape != f.shape:
+                raise ValueError(f"velocity {v.shape} and force {f.shape} differ in shape.")
+            for q, qd in zip(coordinates, rates):
+                Q[q] += (v.diff(qd).T * f)[0, 0]
+    return {q: sp.simplify(expr) for q, expr in Q.items()}
