@@ -24,6 +24,14 @@ _REGISTRY: dict[str, str] = {
     "rolling_disk": "dynamics.models.disk:rolling_disk",
     "bead_on_rotating_rod": "dynamics.models.bead:bead_on_rotating_rod",
     "bead_on_driven_rod": "dynamics.models.bead:bead_on_driven_rod",
+    "particle_cartesian": "dynamics.models.particles:particle_cartesian",
+    "particle_cylindrical": "dynamics.models.particles:particle_cylindrical",
+    "particle_spherical": "dynamics.models.particles:particle_spherical",
+    "particle_nonholonomic": "dynamics.models.particles:particle_nonholonomic",
+    "particle_parabolic_cylindrical": "dynamics.models.particles:particle_parabolic_cylindrical",
+    "particle_on_curve": "dynamics.models.curve:particle_on_curve",
+    "particle_on_4_sphere": "dynamics.models.sphere4:particle_on_4_sphere",
+    "eccentric_disk_slider": "dynamics.models.crank:eccentric_disk_slider",
 }
 
 
