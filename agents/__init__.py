@@ -1,0 +1,1 @@
+"""Controllers and learning agents for the lagrange-gym environments (LQR, baselines, SB3)."""
