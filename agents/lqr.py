@@ -248,3 +248,227 @@ def design(lin: LinearModel, dt: float, Q, R, rtol: float = 1e-9) -> LQRDesign:
     K, P = dlqr(Ad, Bd, Q, R)
     n, m = lin.B.shape
     return LQRDesign(lin, float(dt), Ad, Bd, _weights(Q, n, "Q"), _weights(R, m, "R"), K, P, c)
+
+
+# ---------------------------------------------------------------------------------------
+# Per-environment choices
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """LQR choices for one environment.
+
+    states: the reduced state LQR regulates (None: the full state [q, qdot]).
+    scales: Bryson's rule, Q = diag(1 / scale^2): the error in each kept state component
+        that costs as much as a full-scale action (names absent here get `default_scale`).
+    R: weight of the normalised action (1 / acceptable action^2); scalar or per component.
+    region: half-widths of the uniform perturbation of the operating point from which the
+        closed loop is evaluated (state component name -> half-width, SI units).
+    """
+
+    states: tuple[str, ...] | None = None
+    scales: dict[str, float] = field(default_factory=dict)
+    default_scale: float = 1.0
+    R: float | tuple[float, ...] = 1.0
+    region: dict[str, float] = field(default_factory=dict)
+
+    def Q(self, states: Sequence[str]) -> np.ndarray:
+        return np.array([1.0 / self.scales.get(s, self.default_scale) ** 2 for s in states])
+
+
+CONFIGS: dict[str, EnvConfig] = {
+    "Lagrange/TwoLinkArm-v0": EnvConfig(
+        scales={"theta1": 0.05, "theta2": 0.05},
+        R=1.0,
+        region={"theta1": 0.3, "theta2": 0.3, "theta1_dot": 0.5, "theta2_dot": 0.5},
+    ),
+}
+"""Default LQR choices by environment id (others: the full state, unit scales, R = 1)."""
+
+
+def config_for(env_id: str | None) -> EnvConfig:
+    """The default `EnvConfig` of an environment id (a neutral one for unknown ids)."""
+    return CONFIGS.get(env_id, EnvConfig()) if env_id else EnvConfig()
+
+
+# ---------------------------------------------------------------------------------------
+# The policy
+
+
+def _env_id(env) -> str | None:
+    spec = getattr(env, "spec", None) or getattr(getattr(env, "unwrapped", None), "spec", None)
+    return getattr(spec, "id", None)
+
+
+class LQRPolicy:
+    """u = u0 - K (x - x0), K from the linearisation at the task's operating point.
+
+    Works in the env's normalised action units: B is taken through the env's action
+    scaling, so R weighs actions in [-1, 1] and saturation is the clip to [-1, 1].
+    The operating point (and so the gain) follows the goal encoded in each observation;
+    gains are cached per operating point. `predict` has stable-baselines3's signature.
+
+    env: a Lagrange env (gymnasium.make or its native vector env). Q, R override the
+    per-env defaults (`CONFIGS`): Q a diagonal or matrix over `states`, R over actions.
+    """
+
+    def __init__(self, env, Q=None, R=None, states: Sequence[str] | None = None):
+        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
+        self.config = config_for(_env_id(env))
+        self.system = self.env.system
+        self.dt = float(self.env.control_period)
+        names = state_names(self.system)
+        self.states = tuple(states) if states is not None else self.config.states or names
+        _indices(names, self.states)  # validates the names
+        self.Q = Q if Q is not None else self.config.Q(self.states)
+        n_a = self.env.action_space.shape[-1]
+        self.R = R if R is not None else np.broadcast_to(self.config.R, (n_a,)).astype(float)
+        self._S = self._action_matrix(n_a)
+        self._n = self.system.n_q
+        self._periodic = np.asarray(self.env.periodic, dtype=bool)
+        self._designs: dict[bytes, LQRDesign] = {}
+
+    def _action_matrix(self, n_a: int) -> np.ndarray:
+        """S (n_u, n_a) with u = S a: the env's action scaling, checked to be linear."""
+        zero = self.env.action_to_input(np.zeros(n_a))
+        S = (self.env.action_to_input(np.eye(n_a)) - zero).T
+        probe = np.linspace(-0.9, 0.7, n_a)
+        if np.abs(zero).max() > 0 or not np.allclose(S @ probe, self.env.action_to_input(probe)):
+            raise ValueError("LQRPolicy needs an action scaling u = S a (linear in the action).")
+        return S
+
+    def design(self, x0=None, u0=None) -> LQRDesign:
+        """The LQR design at (x0, u0), default the env's current operating point; B is in
+        action units (columns = action components)."""
+        if x0 is None:
+            x0, u0 = self.env.operating_point()
+        x0, u0 = np.asarray(x0, dtype=np.float64), np.asarray(u0, dtype=np.float64)
+        key = x0.tobytes() + u0.tobytes()
+        d = self._designs.get(key)
+        if d is None:
+            lin = linearize(self.system, x0, u0, self.states)
+            lin = LinearModel(
+                lin.A, lin.B @ self._S, x0, u0, lin.states, _action_names(self), lin.index
+            )
+            d = design(lin, self.dt, self.Q, self.R)
+            if len(self._designs) >= 4096:
+                self._designs.clear()
+            self._designs[key] = d
+        return d
+
+    def error(self, x, x0) -> np.ndarray:
+        """x - x0 with the angle errors wrapped to [-pi, pi)."""
+        dx = np.asarray(x, dtype=np.float64) - x0
+        q = dx[..., : self._n]
+        q[..., self._periodic] = (q[..., self._periodic] + np.pi) % (2 * np.pi) - np.pi
+        return dx
+
+    def act(self, x, x0, u0) -> np.ndarray:
+        """Normalised actions for physical states x (batched), clipped to [-1, 1]."""
+        x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
+        dx = self.error(x, x0)
+        a = self.env.input_to_action(u0).astype(np.float64)
+        for i in range(len(x)):
+            d = self.design(x0[i], u0[i])
+            a[i] -= d.K @ dx[i, d.linear.index]
+        return np.clip(a, -1.0, 1.0)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        """stable-baselines3's interface: (action, None) for one or a batch of observations."""
+        obs = np.asarray(observation, dtype=np.float64)
+        flat = obs.reshape(-1, obs.shape[-1])
+        x = self.env.state_from_observation(flat)
+        x0, u0 = self.env.operating_point(flat)
+        a = self.act(x, x0, u0).astype(np.float32)
+        return a.reshape(obs.shape[:-1] + a.shape[-1:]), None
+
+
+def _action_names(policy: LQRPolicy) -> tuple[str, ...]:
+    inputs = policy.system.inputs
+    return tuple(inputs[int(np.argmax(np.abs(c)))] for c in policy._S.T)
+
+
+# ---------------------------------------------------------------------------------------
+# Closed-loop evaluation from a region around the operating point
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """Outcome of `evaluate_near`: per-episode returns, success at the episode's end, and
+    the perturbation region (state component -> half-width) the starts were drawn from."""
+
+    returns: np.ndarray
+    success: np.ndarray
+    region: dict[str, float]
+
+    @property
+    def success_rate(self) -> float:
+        return float(np.mean(self.success))
+
+
+def perturbed_starts(vec, region: dict[str, float], rng: np.random.Generator) -> np.ndarray:
+    """Operating points of the vector env's current goals plus uniform perturbations of
+    half-width region[name] in each named state component (physical units)."""
+    names = state_names(vec.system)
+    x0, _ = vec.operating_point()
+    x = np.array(x0, dtype=np.float64)
+    for name, width in region.items():
+        x[:, _indices(names, [name])[0]] += rng.uniform(-width, width, len(x))
+    return x
+
+
+def evaluate_near(
+    env_id: str,
+    policy=None,
+    episodes: int = 100,
+    seed: int = 0,
+    region: dict[str, float] | None = None,
+    scale: float = 1.0,
+    **env_kwargs,
+) -> ClosedLoop:
+    """Run `episodes` seeded episodes in parallel (the native vector env), each started
+    at its goal's operating point perturbed uniformly within `scale` x `region` (default:
+    the env's `CONFIGS` region). `policy`: an object with SB3's `predict` built for the
+    vector env, a callable vec -> such an object, or None for `LQRPolicy`. An episode
+    succeeds if `info["is_success"]` holds at its last step."""
+    import gymnasium as gym
+
+    vec = gym.make_vec(
+        env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
+    )
+    try:
+        region = dict(config_for(env_id).region if region is None else region)
+        region = {k: scale * v for k, v in region.items()}
+        vec.reset(seed=seed)  # draws each copy's goal
+        goals = vec.unwrapped.goal
+        starts = perturbed_starts(vec.unwrapped, region, np.random.default_rng(seed))
+        obs, _ = vec.reset(seed=seed, options={"state": starts, "goal": goals})
+        if policy is None:
+            policy = LQRPolicy(vec)
+        elif isinstance(policy, type) or not hasattr(policy, "predict"):
+            policy = policy(vec)
+        returns = np.zeros(episodes)
+        success = np.zeros(episodes, dtype=bool)
+        running = np.ones(episodes, dtype=bool)
+        while running.any():
+            action, _ = policy.predict(obs, deterministic=True)
+            obs, reward, terminated, truncated, info = vec.step(action)
+            returns += np.where(running, reward, 0.0)
+            done = running & (terminated | truncated)
+            success[done] = info["is_success"][done]
+            running &= ~done
+        return ClosedLoop(returns, success, region)
+    finally:
+        vec.close()
+
+
+class ZeroPolicy:
+    """The zero action (no torque): the baseline LQR must beat near the operating point."""
+
+    def __init__(self, env):
+        space = getattr(env, "single_action_space", None) or env.action_space
+        self.shape = space.shape
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        obs = np.asarray(observation)
+        return np.zeros(obs.shape[:-1] + self.shape[-1:], dtype=np.float32), None

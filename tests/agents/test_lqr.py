@@ -1,0 +1,170 @@
+"""LQR from the exact linearisation: Jacobians, the book's (7.26), Riccati, closed loops."""
+
+import numpy as np
+import pytest
+
+import dynamics
+from agents import lqr
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return dynamics.get_model("two_link_arm").compile()
+
+
+@pytest.fixture(scope="module")
+def disk():
+    return dynamics.get_model("rolling_disk").compile()
+
+
+@pytest.fixture(scope="module")
+def bead():
+    return dynamics.get_model("bead_on_driven_rod").compile()
+
+
+def central_differences(system, x0, u0, h=1e-6):
+    """d(state_derivative)/d(x, u) by central differences."""
+    f = lambda x, u: system.state_derivative(0.0, x, u)  # noqa: E731
+    A = np.column_stack(
+        [(f(x0 + h * e, u0) - f(x0 - h * e, u0)) / (2 * h) for e in np.eye(len(x0))]
+    )
+    B = np.column_stack(
+        [(f(x0, u0 + h * e) - f(x0, u0 - h * e)) / (2 * h) for e in np.eye(len(u0))]
+    )
+    return A, B
+
+
+@pytest.mark.parametrize(
+    "name, x0, u0",
+    [
+        ("arm", [0.7, -1.9, 0.8, -1.3], [2.0, -0.5]),  # far from any equilibrium
+        ("arm", [np.pi, np.pi, 0.0, 0.0], [0.0, 0.0]),  # the acrobot's goal
+        ("disk", [0.1, 0.2, 1.3, 0.4, 0.5, 0.0, 0.0, 0.3, 0.7, -6.0], [0.1, -0.2]),  # leaning
+        (
+            "disk",
+            [0.0, 0.0, np.pi / 2, 0.3, 0.0, 2.4 * np.sin(0.3), 2.4 * np.cos(0.3), 0, 0, -8],
+            [0, 0],
+        ),
+        ("bead", [0.4, 0.3, -0.2, 0.5], [0.05]),
+    ],
+)
+def test_linearisation_matches_finite_differences(request, name, x0, u0):
+    system = request.getfixturevalue(name)
+    x0, u0 = np.asarray(x0, float), np.asarray(u0, float)
+    A, B = system.linearize(x0, u0)
+    A_fd, B_fd = central_differences(system, x0, u0)
+    # central differences with h = 1e-6: truncation ~h^2 |f'''| ~1e-11, round-off
+    # ~eps |f| / h ~1e-9 for |f| ~ 10; 1e-6 of the largest entry is far above both
+    scale = max(np.abs(A).max(), np.abs(B).max())
+    np.testing.assert_allclose(A, A_fd, atol=1e-6 * scale)
+    np.testing.assert_allclose(B, B_fd, atol=1e-6 * scale)
+
+
+def test_arm_linearisation_at_rest_equals_book_726(arm):
+    p = arm.parameters
+    I_prime = p["Ibar1"] + p["m1"] * p["l1"] ** 2 + p["m2"] * p["l"] ** 2
+    I2 = p["Ibar2"] + p["m2"] * p["l2"] ** 2
+    A_, B_, C_ = (
+        p["m2"] * p["l"] * p["l2"],
+        (p["m1"] * p["l1"] + p["m2"] * p["l"]) * p["g"],
+        p["m2"] * p["g"] * p["l2"],
+    )
+    M = np.array([[I_prime, A_], [A_, I2]])  # (7.26): M q'' + K q = Q
+    K = np.diag([B_, C_])
+    Q_of_M = np.array([[1.0, -1.0], [0.0, 1.0]])  # Q1 = M1 - M2, Q2 = M2 (joint motors)
+    lin = lqr.linearize(arm, np.zeros(4), np.zeros(2))
+    # same numbers through two routes (symbolic Jacobian vs a 2x2 solve): round-off only
+    np.testing.assert_allclose(lin.A[2:, :2], -np.linalg.solve(M, K), rtol=1e-12)
+    np.testing.assert_allclose(lin.A[2:, 2:], 0.0, atol=1e-12)
+    np.testing.assert_allclose(lin.B[2:], np.linalg.solve(M, Q_of_M), rtol=1e-12)
+    # the classical small oscillations of two uniform rods: eigenvalues +-i w, with
+    # w^2 = (g/l)(3 -+ 6/sqrt 7)
+    w2 = np.sort(-(np.linalg.eigvals(lin.A) ** 2).real)[::2]
+    expected = p["g"] / p["l"] * np.array([3 - 6 / np.sqrt(7), 3 + 6 / np.sqrt(7)])
+    np.testing.assert_allclose(w2, expected, rtol=1e-10)  # round-off of a 4x4 eig
+
+
+def test_zoh_discretisation_is_the_exact_flow_of_the_linear_system(arm):
+    from scipy.integrate import solve_ivp
+
+    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    dt, x, u = 0.05, np.array([0.01, -0.02, 0.03, 0.0]), np.array([0.3, -0.1])
+    Ad, Bd = lqr.discretize(lin.A, lin.B, dt)
+    sol = solve_ivp(lambda t, y: lin.A @ y + lin.B @ u, (0, dt), x, rtol=1e-12, atol=1e-14)
+    # DOP853/RK45 at rtol 1e-12 on |x| ~ 0.05: errors ~1e-13
+    np.testing.assert_allclose(Ad @ x + Bd @ u, sol.y[:, -1], atol=1e-11)
+
+
+@pytest.mark.parametrize("inputs", [(0, 1), (1,)])  # both motors; the acrobot's elbow only
+def test_gain_equals_python_control_dlqr(arm, inputs):
+    control = pytest.importorskip("control")
+    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    Ad, Bd = lqr.discretize(lin.A, lin.B[:, inputs], 0.05)
+    Q, R = np.diag([3.0, 1.0, 0.2, 0.1]), np.eye(len(inputs)) * 0.5
+    K, P = lqr.dlqr(Ad, Bd, Q, R)
+    K_ref, P_ref, _ = control.dlqr(Ad, Bd, Q, R)
+    # two solvers of the same Riccati equation (both via scipy's Schur method or slycot):
+    # agreement to ~1e-9 relative for cost matrices with entries up to ~1e4
+    np.testing.assert_allclose(K, K_ref, rtol=1e-8, atol=1e-8 * np.abs(K_ref).max())
+    np.testing.assert_allclose(P, P_ref, rtol=1e-8, atol=1e-8 * np.abs(P_ref).max())
+
+
+def test_riccati_cost_is_the_closed_loop_cost(arm):
+    # the value function: x0' P x0 = sum over k of x'Qx + u'Ru along the closed loop
+    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    Ad, Bd = lqr.discretize(lin.A, lin.B[:, 1:], 0.05)
+    Q, R = np.eye(4), np.eye(1)
+    K, P = lqr.dlqr(Ad, Bd, Q, R)
+    x0 = x = np.array([0.02, -0.01, 0.0, 0.05])
+    cost = 0.0
+    for _ in range(4000):
+        u = -K @ x
+        cost += x @ Q @ x + u @ R @ u
+        x = Ad @ x + Bd @ u
+    # slowest closed-loop |z| < 0.99, so 4000 steps leave < 1e-17 of the cost; the rest is
+    # round-off of a sum of 4000 terms
+    assert np.abs(np.linalg.eigvals(Ad - Bd @ K)).max() < 0.99
+    assert cost == pytest.approx(x0 @ P @ x0, rel=1e-9)
+
+
+def test_disk_at_rest_is_uncontrollable_and_the_error_names_the_lean(disk):
+    keep = ("theta", "phi", "theta_dot", "phi_dot", "psi_dot")
+    at_rest = np.zeros(10)
+    at_rest[2] = np.pi / 2
+    lin = lqr.linearize(disk, at_rest, [0, 0], keep)
+    with pytest.raises(lqr.UncontrollableError, match=r"rank 3 of 5.*5\.11.*theta 1\.00"):
+        lqr.design(lin, 0.05, np.ones(5), np.ones(2))
+    c = lqr.controllability(lin.A, lin.B, lin.states)
+    assert not c.controllable and c.condition == np.inf and len(c.unreachable) == 2
+
+
+def test_disk_rolling_is_controllable_from_the_steering_torque_alone(disk):
+    # rolling makes the lean reachable through the gyroscopic coupling of a steer
+    keep = ("theta", "phi", "theta_dot", "phi_dot")
+    x0 = np.zeros(10)
+    x0[2], x0[6], x0[9] = np.pi / 2, 2.4, -8.0  # z' = -r psi' cos(0)
+    lin = lqr.linearize(disk, x0, [0, 0], keep)
+    c = lqr.controllability(lin.A, lin.B[:, 1:], lin.states)
+    assert c.controllable and np.isfinite(c.condition)
+
+
+def test_dropping_a_coupled_state_is_refused(disk):
+    x0 = np.zeros(10)
+    x0[2], x0[6], x0[9] = np.pi / 2, 2.4, -8.0
+    with pytest.raises(ValueError, match="Cannot drop 'phi_dot': it drives 'theta_dot'"):
+        lqr.linearize(disk, x0, [0, 0], ("theta", "theta_dot"))
+    with pytest.raises(ValueError, match="Unknown state components"):
+        lqr.linearize(disk, x0, [0, 0], ("theta", "lean"))
+
+
+def test_bad_weights_and_periods_are_refused():
+    A, B = np.array([[0.0, 1.0], [2.0, 0.0]]), np.array([[0.0], [1.0]])
+    Ad, Bd = lqr.discretize(A, B, 0.1)
+    with pytest.raises(ValueError, match=r"Q must be \(2, 2\) or a diagonal of length 2"):
+        lqr.dlqr(Ad, Bd, np.ones(3), [1.0])
+    with pytest.raises(ValueError, match="R must be positive definite"):
+        lqr.dlqr(Ad, Bd, np.ones(2), [0.0])
+    with pytest.raises(ValueError, match="dt must be a positive"):
+        lqr.discretize(A, B, -0.1)
+    with pytest.raises(ValueError, match=r"B must have shape \(2, m\)"):
+        lqr.controllability(A, np.ones((3, 1)))
