@@ -31,14 +31,12 @@ finds the same boundary numerically from the exact Jacobians, without this formu
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 
 import numpy as np
 from scipy.optimize import brentq
 
-from .lqr import linearize
+from .lqr import linearize, save_figure
 
 LEAN_STATES = ("theta", "theta_dot", "phi_dot")
 """The reduced state whose stability decides upright rolling."""
@@ -154,19 +152,6 @@ def linear_lean(system, spin: float, lean_rate0: float, times) -> np.ndarray:
     return (lean_rate0 * np.sinh(s * times) / s).real
 
 
-def _save_atomic(fig, path: str) -> None:
-    directory = os.path.dirname(os.path.abspath(path))
-    fmt = os.path.splitext(path)[1].lstrip(".") or "png"
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix="." + fmt)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format=fmt, dpi=120)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def plot(system, path: str, margin: float = 0.05) -> None:
     """Eigenvalues against spin rate, and nonlinear lean histories just below and just
     above the critical spin rate (factors 1 -+ margin), saved to `path`."""
@@ -201,7 +186,7 @@ def plot(system, path: str, margin: float = 0.05) -> None:
     ax2.set_title(f"Unforced rolling after a lean-rate kick of {KICK} rad/s")
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    _save_atomic(fig, path)
+    save_figure(fig, path)
     plt.close(fig)
 
 
