@@ -1,4 +1,4 @@
-"""Command line: `python -m dynamics list` and `python -m dynamics show NAME [--latex]`."""
+"""Command line: `python -m dynamics list`, `show NAME [--latex]`, `cache [--clear]`."""
 
 from __future__ import annotations
 
@@ -50,7 +50,26 @@ def main(argv: list[str] | None = None) -> int:
     p_show = sub.add_parser("show", help="print a model's derived equations")
     p_show.add_argument("name", help="model name (see `list`)")
     p_show.add_argument("--latex", action="store_true", help="print LaTeX instead of text")
+    p_cache = sub.add_parser("cache", help="show (or --clear) the compiled-model cache")
+    p_cache.add_argument("--clear", action="store_true", help="delete every cached model")
     args = parser.parse_args(argv)
+    if args.command == "cache":
+        from . import cache
+
+        root = cache.cache_dir()
+        files = sorted(root.glob("*.py"))
+        if args.clear:
+            import shutil
+
+            for f in files:
+                f.unlink(missing_ok=True)
+            shutil.rmtree(root / "__pycache__", ignore_errors=True)
+            print(f"removed {len(files)} compiled models from {root}")
+        else:
+            print(f"{root}: {len(files)} compiled models")
+            for f in files:
+                print(f"  {f.name}")
+        return 0
     if args.command == "list":
         print("\n".join(list_models()))
         return 0

@@ -178,3 +178,18 @@ def linear_terms(t, x, u, p, A, z, Jx, Ju):
     accelerations(t, x, u, p, A, z)
     jacobians(t, x, u, p, z, Jx, Ju)
     kkt_matrix(t, x, p, A)
+
+
+@njit(cache=True)
+def all_finite(T, X, U):
+    """True if no entry of T, X, U is NaN or inf (one pass, no temporaries)."""
+    for b in range(X.shape[0]):
+        if not math.isfinite(T[b]):
+            return False
+        for i in range(X.shape[1]):
+            if not math.isfinite(X[b, i]):
+                return False
+        for j in range(U.shape[1]):
+            if not math.isfinite(U[b, j]):
+                return False
+    return True

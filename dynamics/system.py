@@ -8,6 +8,7 @@ or broadcast against the batch.
 from __future__ import annotations
 
 import difflib
+import math
 from types import ModuleType
 
 import numpy as np
@@ -54,6 +55,7 @@ class System:
         self.output_names: tuple[str, ...] = module.OUTPUTS
         self.n_q, self.n_u, self.n_c = module.N_Q, module.N_U, module.N_C
         self.state_size = 2 * self.n_q
+        self._no_input = np.zeros(self.n_u)
         self._p = check_parameters(
             self.name, module.PARAMETERS, module.DEFAULTS, module.POSITIVE, params or {}
         )
@@ -85,51 +87,64 @@ class System:
                 f"{self.name}: expected state of shape (..., {self.state_size}) "
                 f"[q, qdot] for coordinates {self.coordinates}, got {x.shape}."
             )
-        if not np.isfinite(x).all():
-            raise ValueError(f"{self.name}: state contains NaN or inf.")
         return x
 
-    def _input(self, u, lead: tuple) -> np.ndarray:
+    def _input(self, u) -> np.ndarray:
         if u is None:
-            u = np.zeros(self.n_u)
+            return self._no_input
         u = np.asarray(u, dtype=np.float64)
         if u.ndim == 0 or u.shape[-1] != self.n_u:
             raise ValueError(
                 f"{self.name}: expected input of shape (..., {self.n_u}) for "
                 f"inputs {self.inputs}, got {u.shape}."
             )
-        if not np.isfinite(u).all():
-            raise ValueError(f"{self.name}: input contains NaN or inf.")
         return u
 
     def _batch(self, t, x, u=None, need_u=True):
-        """Flatten (t, x, u) to contiguous 2-D rows; return them and the leading shape."""
+        """Flatten (t, x, u) to contiguous writable float64 rows (one numba specialisation
+        for every caller), check they are finite; return them and the leading shape."""
         x = self._state(x)
-        if need_u:
-            u = self._input(u, x.shape[:-1])
-            lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
-        else:
-            lead = x.shape[:-1]
+        u = self._input(u) if need_u else self._no_input
         t = np.asarray(t, dtype=np.float64)
-        if not np.isfinite(t).all():
-            raise ValueError(f"{self.name}: time contains NaN or inf.")
-        lead = np.broadcast_shapes(lead, t.shape)
-        nb = int(np.prod(lead, dtype=np.int64))
-        # fresh writable C arrays: one numba specialisation for every caller
-        X = np.array(np.broadcast_to(x, lead + x.shape[-1:]).reshape(nb, -1), order="C")
-        T = np.array(np.broadcast_to(t, lead).reshape(nb), order="C")
-        U = None
-        if need_u:
-            U = np.array(np.broadcast_to(u, lead + (self.n_u,)).reshape(nb, self.n_u), order="C")
-        return T, X, U, lead
+        lead = x.shape[:-1]
+        if u.shape[:-1] != lead or t.ndim:
+            lead = np.broadcast_shapes(lead, u.shape[:-1], t.shape)
+        nb = math.prod(lead)
+        X = _rows(x, lead, nb)
+        U = _rows(u, lead, nb)
+        if t.ndim == 0:
+            T = np.empty(nb)
+            T[:] = t
+        else:
+            T = _rows(t[..., None], lead, nb).reshape(nb)
+        if not self._m.all_finite(T, X, U):
+            for label, a in (("state", X), ("input", U), ("time", T)):
+                if not np.isfinite(a).all():
+                    raise ValueError(f"{self.name}: {label} contains NaN or inf.")
+        return T, X, (U if need_u else None), lead
 
     # ---- dynamics ----------------------------------------------------------------------
     def state_derivative(self, t, x, u=None) -> np.ndarray:
         """dx/dt = [qdot, qddot] at time t, state x, inputs u (zeros if None)."""
         T, X, U, lead = self._batch(t, x, u)
-        out = np.empty_like(X)
-        self._m.derivative_batch(T, X, U, self._p, out)
+        if X.shape[0] >= VECTORIZE_FROM:
+            out = self._derivative_columns(T, X, U)
+        else:
+            out = np.empty_like(X)
+            self._m.derivative_batch(T, X, U, self._p, out)
         return out.reshape(lead + (self.state_size,))
+
+    def _derivative_columns(self, T, X, U) -> np.ndarray:
+        """Large batches: numpy over columns, whose SIMD sin/cos beat scalar libm calls."""
+        n = self.n_q
+        k = n + self.n_c
+        A, r = self._m.kkt_columns(T, np.ascontiguousarray(X.T), np.ascontiguousarray(U.T), self._p)
+        z = _eliminate([list(A[i * k : (i + 1) * k]) for i in range(k)], list(r))
+        out = np.empty_like(X)
+        out[:, :n] = X[:, n:]
+        for i in range(n):
+            out[:, n + i] = z[i]
+        return out
 
     def accelerations(self, t, x, u=None) -> np.ndarray:
         """qddot, shape (..., n)."""
@@ -208,7 +223,9 @@ class System:
     def linearize(self, x0, u0=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) with d(dx)/dt = A dx + B du about (x0, u0), from symbolic Jacobians."""
         x0 = self._state(x0)
-        u0 = self._input(u0, ())
+        u0 = self._input(u0)
+        if not (np.isfinite(x0).all() and np.isfinite(u0).all()):
+            raise ValueError(f"{self.name}: operating point contains NaN or inf.")
         if x0.ndim != 1 or u0.ndim != 1:
             raise ValueError("linearize takes one state and one input (no batch axis).")
         n, k = self.n_q, self.n_q + self.n_c
@@ -226,6 +243,47 @@ class System:
         B = np.zeros((2 * n, self.n_u))
         B[n:, :] = dz[:n, 2 * n :]
         return A, B
+
+
+VECTORIZE_FROM = 512
+"""Batch size from which state_derivative evaluates column-wise with numpy (measured
+crossover on the arm and the disk; benchmarks/dynamics.py)."""
+
+
+def _is_zero(a) -> bool:
+    return isinstance(a, float) and a == 0.0
+
+
+def _eliminate(A: list, r: list) -> list:
+    """Solve A z = r for lists of entries (arrays over the batch, or floats), by Gaussian
+    elimination without pivoting: valid for the mass/constraint matrix in its natural order,
+    whose leading block M is positive definite and whose Schur complement -B M^-1 B^T is
+    negative definite. Exact zeros are skipped."""
+    k = len(r)
+    for c in range(k):
+        for i in range(c + 1, k):
+            if _is_zero(A[i][c]):
+                continue
+            f = A[i][c] / A[c][c]
+            for j in range(c + 1, k):
+                if not _is_zero(A[c][j]):
+                    A[i][j] = A[i][j] - f * A[c][j]
+            r[i] = r[i] - f * r[c]
+    z = [0.0] * k
+    for c in range(k - 1, -1, -1):
+        s = r[c]
+        for j in range(c + 1, k):
+            if not _is_zero(A[c][j]):
+                s = s - A[c][j] * z[j]
+        z[c] = s / A[c][c]
+    return z
+
+
+def _rows(a: np.ndarray, lead: tuple, nb: int) -> np.ndarray:
+    if a.shape[:-1] != lead:
+        a = np.broadcast_to(a, lead + a.shape[-1:])
+    a = np.ascontiguousarray(a.reshape(nb, a.shape[-1]))
+    return a if a.flags.writeable else a.copy()
 
 
 def _rebuild(name: str, key: str, source: str, params: dict) -> System:

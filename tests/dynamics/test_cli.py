@@ -20,3 +20,16 @@ def test_show_prints_equations_and_latex(capsys):
 def test_show_unknown_model_is_an_error(capsys):
     assert main(["show", "rolling_disc"]) == 2
     assert "Did you mean 'rolling_disk'" in capsys.readouterr().err
+
+
+def test_cache_command_lists_compiled_models(capsys, monkeypatch, tmp_path):
+    import dynamics
+    from dynamics import cache
+
+    monkeypatch.setenv("LAGRANGE_GYM_CACHE", str(tmp_path))
+    monkeypatch.setattr(cache, "_loaded", {})  # forget modules loaded by earlier tests
+    dynamics.get_model("bead_on_rotating_rod").compile()
+    assert main(["cache"]) == 0
+    assert "1 compiled models" in capsys.readouterr().out
+    assert main(["cache", "--clear"]) == 0
+    assert not list(tmp_path.glob("*.py"))

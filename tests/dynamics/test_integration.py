@@ -84,3 +84,17 @@ def test_leading_batch_shapes_broadcast():
     assert system.state_derivative(0.0, xb, np.zeros(2)).shape == (2, 3, 4)
     assert system.energy(xb).shape == (2, 3)
     assert system.step(xb, np.zeros((2, 3, 2)), 0.01).shape == (2, 3, 4)
+
+
+@pytest.mark.parametrize("name", SCLERONOMIC)
+def test_column_wise_large_batches_agree_with_the_kernel(name):
+    from dynamics.system import VECTORIZE_FROM
+
+    system, x = random_states(name, VECTORIZE_FROM + 3, seed=8)
+    u = np.random.default_rng(9).normal(size=(len(x), system.n_u))
+    large = system.state_derivative(0.0, x, u)
+    rows = np.concatenate(
+        [system.state_derivative(0.0, x[i : i + 1], u[i : i + 1]) for i in range(len(x))]
+    )
+    # two orders of floating-point operations (no pivoting vs pivoting): round-off only
+    np.testing.assert_allclose(large, rows, rtol=1e-10, atol=1e-10)
