@@ -1,0 +1,114 @@
+"""Small helpers shared by the training, evaluation and checking programs.
+
+Environment-id checking (with close matches), atomic file writes, torch thread settings
+and argparse types that reject bad budgets with a clear message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import difflib
+import importlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import gymnasium as gym
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/agents.py --threads (2 threads is slower)
+
+
+def register_envs() -> tuple[str, ...]:
+    """Import `envs` (which registers the Lagrange environments); return their ids."""
+    try:
+        envs = importlib.import_module("envs")
+    except ModuleNotFoundError as exc:  # only a missing `envs` package is tolerated
+        if exc.name != "envs":
+            raise
+        return ()
+    return tuple(getattr(envs, "ENV_IDS", ()))
+
+
+def check_env_id(env_id: str) -> str:
+    """`env_id` if Gymnasium knows it; otherwise a ValueError naming close matches."""
+    if not isinstance(env_id, str):
+        raise TypeError(f"Environment id must be a string, got {type(env_id).__name__}.")
+    register_envs()
+    if env_id in gym.registry:
+        return env_id
+    known = sorted(gym.registry)
+    close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
+    if not close:  # 'TwoLinkArm' should still find 'Lagrange/TwoLinkArm-v0'
+        close = [k for k in known if env_id.lower() in k.lower()][:3]
+    hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
+    ours = register_envs()
+    listing = f" Lagrange environments: {', '.join(ours)}." if ours else ""
+    raise ValueError(f"Unknown environment id {env_id!r}.{hint}{listing}")
+
+
+def set_torch_threads(n: int = DEFAULT_TORCH_THREADS) -> None:
+    """Limit torch's intra-op threads (small MLPs on a shared box are faster on one)."""
+    import torch
+
+    if n < 1:
+        raise ValueError(f"Number of torch threads must be at least 1, got {n}.")
+    torch.set_num_threads(n)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path next to `path`; on success move it over `path` atomically.
+
+    The temporary file keeps `path`'s suffix (or `suffix`), so writers that add an
+    extension when it is missing (SB3's `save`) write exactly where they are told."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
+    )
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file normal permissions
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    """Write `text` to `path` atomically (temp file + os.replace)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1, with a message that says what was given."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
+def env_slug(env_id: str) -> str:
+    """A file-system name for an environment id ('Lagrange/Acrobot-v0' -> 'Lagrange-Acrobot-v0')."""
+    return env_id.replace("/", "-").replace(":", "-")

@@ -1,0 +1,33 @@
+"""Per-environment hyperparameters, RL Zoo style: one YAML file per algorithm, keyed by env id.
+
+Keys the training program interprets itself: `n_timesteps` (default budget), `n_envs`,
+`policy`, `normalize` (bool or VecNormalize keyword arguments), `action_noise`
+({type: normal, sigma: S}), `policy_kwargs` (with `activation_fn` by name) and schedules
+written "lin_X" (linear decay from X to 0). Everything else goes to the algorithm.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+import yaml
+
+DIRECTORY = Path(__file__).parent / "hyperparams"
+ALGOS = ("ppo", "sac", "td3")
+
+
+def load(algo: str, env_id: str) -> dict:
+    """The hyperparameters of `algo` for `env_id` (a fresh dict)."""
+    if algo not in ALGOS:
+        close = difflib.get_close_matches(algo, ALGOS, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        raise ValueError(f"Unknown algorithm {algo!r}.{hint} Known: {', '.join(ALGOS)}.")
+    path = DIRECTORY / f"{algo}.yml"
+    table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    if env_id not in table:
+        raise ValueError(
+            f"No {algo} hyperparameters for {env_id!r} in {path.name}. "
+            f"Environments with {algo} hyperparameters: {', '.join(sorted(table))}."
+        )
+    return dict(table[env_id])
