@@ -20,6 +20,7 @@ _ENVS = {
     "Lagrange/Acrobot-v0": ("envs.acrobot", "Acrobot", 500),
     "Lagrange/RollingDisk-v0": ("envs.disk", "RollingDisk", 400),
     "Lagrange/BeadOnRod-v0": ("envs.bead", "BeadOnRod", 200),
+    "Lagrange/CrankSlider-v0": ("envs.crank", "CrankSlider", 200),
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_ENVS)

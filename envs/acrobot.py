@@ -19,7 +19,7 @@ RATE_TOLERANCE = 1.0
 
 
 @njit(cache=True)
-def evaluate(X, A, G, c, obs, terms, flags):
+def evaluate(X, A, G, Y, c, obs, terms, flags):
     """Observation, reward terms (height, rate, effort), [terminated, success] per row.
     c = [l, length of link 2]."""
     l, l2 = c[0], c[1]
@@ -135,7 +135,7 @@ class AcrobotEnv(LagrangianEnv):
     def _goal_from_observation(self, obs):
         return np.full((len(obs), 2), np.pi)
 
-    def _operating_state(self, goal):
+    def _operating_state(self, goal, x):
         return np.concatenate([goal, np.zeros_like(goal)], axis=1)
 
     def _draw(self, surface, x, goal, history):

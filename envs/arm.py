@@ -20,7 +20,7 @@ RATE_TOLERANCE = 0.5
 
 
 @njit(cache=True)
-def evaluate(X, A, G, c, obs, terms, flags):
+def evaluate(X, A, G, Y, c, obs, terms, flags):
     """Observation, reward terms (angle, rate, effort), [terminated, success] per row."""
     for b in range(X.shape[0]):
         th1, th2, w1, w2 = X[b, 0], X[b, 1], X[b, 2], X[b, 3]
@@ -144,7 +144,7 @@ class TwoLinkArmEnv(LagrangianEnv):
     def _goal_from_observation(self, obs):
         return np.arctan2(obs[:, 8:10], obs[:, 6:8])
 
-    def _operating_state(self, goal):
+    def _operating_state(self, goal, x):
         return np.concatenate([goal, np.zeros_like(goal)], axis=1)
 
     def _draw(self, surface, x, goal, history):

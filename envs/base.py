@@ -7,13 +7,16 @@ that is not the task: building the system from keyword arguments, mapping action
 handling, `info`, seeding and resets, pickling and rendering.
 
 A task subclass supplies what is particular to it. Per step, one compiled (numba) kernel
-evaluates every copy: `evaluate(X, A, G, c, obs, terms, flags)` writes, for each row of
+evaluates every copy: `evaluate(X, A, G, Y, c, obs, terms, flags)` writes, for each row of
 states X (N, 2n), clipped actions A (N, n_a) and goals G (N, n_g), the observation, the
 reward terms (summed into the reward, named by `reward_names`, on the post-step state) and
-flags [terminated, success]; `c` holds the task's constants (`_task_constants`). A Python
+flags [terminated, success]; Y holds the model's outputs (`System.outputs`, columns in the
+order of `system.output_names`) if the task sets `uses_outputs`, and `c` the task's
+constants (`_task_constants`). A Python
 loop of numpy calls per step would cost several times the RK4 step itself. Off the hot path,
 plain numpy methods: `_sample_start(rng) -> (x, goal)`, `_state_from_observation(obs)`,
-`_goal_from_observation(obs)`, `_operating_state(goal)`, `_observation_high()`,
+`_goal_from_observation(obs)`, `_operating_state(goal, x)` (x: the current states, for
+tasks with several operating points per goal), `_observation_high()`,
 `_state_limits()` (divergence bounds on |x|), and `_draw(surface, x, goal, history)` for
 rendering through `envs.rendering` (history: the states of the frames rendered so far this
 episode, or None). The vector env runs the same kernels on all its copies at once.
@@ -113,6 +116,7 @@ class LagrangianEnv(gym.Env):
     goal_size: ClassVar[int]
     reward_names: ClassVar[tuple[str, ...]]
     evaluate: ClassVar[Any]  # the task's numba kernel (see the module docstring)
+    uses_outputs: ClassVar[bool] = False  # evaluate reads the model's outputs Y
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"]}
 
     def __init__(
@@ -182,7 +186,8 @@ class LagrangianEnv(gym.Env):
         self._R = np.zeros(n)  # rewards
         self._F = np.zeros((n, 2), dtype=np.bool_)  # terminated, success
         self._D = np.zeros(n, dtype=np.bool_)  # diverged
-        self._energy_kernel, self._residual_kernel, self._p = _kernels(s)
+        self._Y = np.zeros((n, len(s.output_names) if self.uses_outputs else 0))
+        self._energy_kernel, self._residual_kernel, self._outputs_kernel, self._p = _kernels(s)
         self._ready = False
 
     # ---- the contract --------------------------------------------------------------
@@ -226,13 +231,14 @@ class LagrangianEnv(gym.Env):
         """(x0, u0): the state and model inputs the task regulates to, for the current goal
         or for the goal encoded in `obs` (batched if obs is)."""
         if obs is None:
-            goal = self._G[:1]
+            goal, x = self._G[:1], self._X[:1]
             lead: tuple[int, ...] = ()
         else:
             obs = np.asarray(obs, dtype=np.float64)
             lead = obs.shape[:-1]
-            goal = self._goal_from_observation(obs.reshape(-1, obs.shape[-1]))
-        x0 = self._operating_state(goal)
+            rows = obs.reshape(-1, obs.shape[-1])
+            goal, x = self._goal_from_observation(rows), self._state_from_observation(rows)
+        x0 = self._operating_state(goal, x)
         u0 = self._operating_input(x0)
         return x0.reshape(lead + x0.shape[-1:]), u0.reshape(lead + u0.shape[-1:])
 
@@ -316,7 +322,9 @@ class LagrangianEnv(gym.Env):
 
     def _evaluate(self) -> None:
         """Observation, reward terms, reward and [terminated, success] of every row."""
-        self.evaluate(self._X, self._A, self._G, self._c, self._O, self._Q, self._F)
+        if self.uses_outputs:
+            self._outputs_kernel(self._T, self._X, self._U, self._p, self._Y)
+        self.evaluate(self._X, self._A, self._G, self._Y, self._c, self._O, self._Q, self._F)
         sum_rows(self._Q, self._R)
 
     def _step_info(self, diverged: bool) -> dict[str, Any]:
@@ -372,13 +380,15 @@ class LagrangianEnv(gym.Env):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_viewer"] = None
-        for k in ("_energy_kernel", "_residual_kernel"):
+        for k in ("_energy_kernel", "_residual_kernel", "_outputs_kernel"):
             state.pop(k)
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._energy_kernel, self._residual_kernel, self._p = _kernels(self.system)
+        self._energy_kernel, self._residual_kernel, self._outputs_kernel, self._p = _kernels(
+            self.system
+        )
 
 
 class LagrangianVectorEnv(VectorEnv):
@@ -459,7 +469,7 @@ class LagrangianVectorEnv(VectorEnv):
         """(x0, u0) per copy, for the current goals or those encoded in `obs`."""
         env = self._env
         if obs is None:
-            x0 = env._operating_state(env._G)
+            x0 = env._operating_state(env._G, env._X)
             return x0, env._operating_input(x0)
         return env.operating_point(obs)
 
@@ -585,11 +595,11 @@ def _compile(cls: type, model: str, params: dict) -> dynamics.System:
 
 
 def _kernels(system: dynamics.System):
-    """The compiled batch kernels behind `System.energy_terms` and
-    `System.constraint_residual`, to call on the env's own contiguous buffers without
-    `System`'s per-call argument checks (which would cost more than the RK4 step)."""
+    """The compiled batch kernels behind `System.energy_terms`, `System.constraint_residual`
+    and `System.outputs`, to call on the env's own contiguous buffers without `System`'s
+    per-call argument checks (which would cost more than the RK4 step)."""
     module = system._m
-    return module.energy_batch, module.residual_batch, system._p
+    return module.energy_batch, module.residual_batch, module.outputs_batch, system._p
 
 
 def _positive_float(name: str, value) -> float:

@@ -23,7 +23,7 @@ SPEED_TOLERANCE = 0.05
 
 
 @njit(cache=True)
-def evaluate(X, A, G, c, obs, terms, flags):
+def evaluate(X, A, G, Y, c, obs, terms, flags):
     """Observation, reward terms (alive, distance, angle, effort), [terminated, success].
     c = [half-length of the rod]."""
     half = c[0]
@@ -142,7 +142,7 @@ class BeadOnRodEnv(LagrangianEnv):
     def _goal_from_observation(self, obs):
         return obs[:, 5:6].copy()
 
-    def _operating_state(self, goal):
+    def _operating_state(self, goal, x):
         """The bead at rest at r* on the rod held horizontal (the only equilibria)."""
         z = np.zeros_like(goal)
         return np.concatenate([goal, z, z, z], axis=1)

@@ -27,7 +27,7 @@ HEADING_TOLERANCE = 0.1
 
 
 @njit(cache=True)
-def evaluate(X, A, G, c, obs, terms, flags):
+def evaluate(X, A, G, Y, c, obs, terms, flags):
     """Observation, reward terms (alive, speed, heading, lean, effort), [terminated,
     success] per row. c = [radius]."""
     radius = c[0]
@@ -198,7 +198,7 @@ class RollingDiskEnv(LagrangianEnv):
     def _goal_from_observation(self, obs):
         return np.stack([obs[:, 7], np.arctan2(obs[:, 9], obs[:, 8])], axis=1)
 
-    def _operating_state(self, goal):
+    def _operating_state(self, goal, x):
         """Upright straight rolling at v* along phi*: a steady motion (theta = pi/2,
         phi' = 0, psi' = -v*/r, cyclic coordinates 0)."""
         speed, heading = goal[:, 0], goal[:, 1]

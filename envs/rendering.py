@@ -265,38 +265,34 @@ def draw_disk(
 
 
 def draw_crank(
-    surface,
-    angle: float,
-    slider: float,
-    target: float,
-    radius: float,
-    eccentricity: float,
-    rod: float,
+    surface, theta: float, slider: float, target: float, R: float, l: float, h: float, s: float
 ) -> None:
-    """Problem 7/3's mechanism: a disk of `radius` turning about a fixed axle at the origin,
-    its pin at distance `eccentricity` and `angle` (counter-clockwise from +x), a connecting
-    rod of length `rod` to a slider on the x axis at `slider`, and the slider's target."""
-    extent = 1.15 * max(radius + rod + eccentricity, abs(target) + 0.2 * rod)
-    frame = Frame2D(surface.get_width(), extent, centre=(0.45 * extent, 0.0))
+    """Problem 7/3's mechanism (x right, y up, axle O at the origin): the disk, drawn with
+    radius 1.5 R, turned to `theta` (angle of the pin P from +x, counter-clockwise), its
+    mass centre G at s along OP, the rod PS of length l, the slider S at x = `slider` on
+    the line y = -h, and the slider's target."""
+    x_max = R + l
+    extent = 0.6 * (x_max + 1.6 * R)
+    frame = Frame2D(surface.get_width(), extent, centre=(0.5 * (x_max - 1.6 * R), -h / 2))
     _, gfxdraw = _pygame()
-    y0 = frame(0.0, 0.0)[1]
-    gfxdraw.hline(surface, 0, surface.get_width(), int(y0), FLOOR)
-    _dot(surface, frame(0.0, 0.0), radius * frame.scale, GHOST)
-    _dot(surface, frame(0.0, 0.0), radius * frame.scale, INK, filled=False)
-    pin = (eccentricity * math.cos(angle), eccentricity * math.sin(angle))
-    mark = (radius * math.cos(angle), radius * math.sin(angle))
-    _bar(surface, frame(0.0, 0.0), frame(*mark), 2, JOINT)
-    _bar(surface, frame(*pin), frame(slider, 0.0), 0.03 * frame.scale, LINK)
-    _dot(surface, frame(0.0, 0.0), 0.03 * frame.scale, INK)
-    _dot(surface, frame(*pin), 0.03 * frame.scale, JOINT)
-    h = 0.06 * extent
-    sx = frame(slider, 0.0)
+    line = frame(0.0, -h)[1] + 0.03 * l * frame.scale
+    gfxdraw.hline(surface, 0, surface.get_width(), int(line), INK)
+    c, sn = math.cos(theta), math.sin(theta)
+    _dot(surface, frame(0.0, 0.0), 1.5 * R * frame.scale, GHOST)
+    _dot(surface, frame(0.0, 0.0), 1.5 * R * frame.scale, INK, filled=False)
+    _dot(surface, frame(s * c, s * sn), 0.08 * R * frame.scale, GOAL)  # mass centre G
+    tx = frame(target, -h)
+    size = 0.12 * l * frame.scale
+    _bar(surface, (tx[0], tx[1] - 1.2 * size), (tx[0], tx[1] + 1.2 * size), 3, GOAL)
+    sx = frame(slider, -h)
     box = [
-        (sx[0] - h * frame.scale, sx[1] - 0.5 * h * frame.scale),
-        (sx[0] + h * frame.scale, sx[1] - 0.5 * h * frame.scale),
-        (sx[0] + h * frame.scale, sx[1] + 0.5 * h * frame.scale),
-        (sx[0] - h * frame.scale, sx[1] + 0.5 * h * frame.scale),
+        (sx[0] - size, sx[1] - 0.5 * size),
+        (sx[0] + size, sx[1] - 0.5 * size),
+        (sx[0] + size, sx[1] + 0.5 * size),
+        (sx[0] - size, sx[1] + 0.5 * size),
     ]
     gfxdraw.filled_polygon(surface, box, INK)
-    tx = frame(target, 0.0)
-    _bar(surface, (tx[0], tx[1] - h * frame.scale), (tx[0], tx[1] + h * frame.scale), 3, GOAL)
+    pin = frame(R * c, R * sn)
+    _bar(surface, pin, sx, 0.04 * l * frame.scale, LINK)
+    _dot(surface, frame(0.0, 0.0), 0.1 * R * frame.scale, INK)
+    _dot(surface, pin, 0.1 * R * frame.scale, JOINT)

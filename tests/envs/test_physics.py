@@ -19,6 +19,8 @@ ENERGY = {
     "Lagrange/RollingDisk-v0": (None, 1e-8),
     # m g rod_length / 2 for the default bead (0.98 J)
     "Lagrange/BeadOnRod-v0": (0.981, 1e-8),
+    # M g |s| for the default eccentric disk (0.98 J)
+    "Lagrange/CrankSlider-v0": (0.981, 1e-7),
 }
 
 
@@ -90,6 +92,24 @@ def test_disk_rolls_straight_at_the_command_without_torque():
     x = info["state"]
     # the contact point travelled v t along the heading (2 m/s for 2 s); RK4 error ~1e-9
     np.testing.assert_allclose(x[:2], 4.0 * np.array([np.sin(0.7), np.cos(0.7)]), atol=1e-6)
+
+
+def test_crank_operating_point_puts_the_slider_on_target_on_the_nearer_branch():
+    env = gym.make("Lagrange/CrankSlider-v0").unwrapped
+    for theta in (1.0, -1.0):
+        env.reset(seed=0, options={"state": [theta, 0.0], "goal": [0.3]})
+        x0, u0 = env.operating_point()
+        slider = env.system.outputs(0.0, x0)["slider_x"]
+        assert slider == pytest.approx(0.3, abs=1e-12)  # bisection to round-off
+        assert np.sign(x0[0]) == np.sign(theta)  # the branch on the current side
+        p = env.system.parameters
+        # gravity acts on the disk only: the holding torque is M g s cos(theta)
+        assert u0[0] == pytest.approx(p["M"] * p["g"] * p["s"] * np.cos(x0[0]), rel=1e-9)
+        env.reset(options={"state": x0, "goal": [0.3]})
+        for _ in range(10):
+            _, _, _, _, info = env.step(env.input_to_action(u0))
+        # held at rest for 0.5 s: only round-off grows (the equilibrium may be unstable)
+        np.testing.assert_allclose(info["state"], x0, atol=1e-9)
 
 
 def test_bead_terminates_when_it_leaves_the_rod():
