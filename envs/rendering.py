@@ -280,7 +280,7 @@ def draw_crank(
     c, sn = math.cos(theta), math.sin(theta)
     _dot(surface, frame(0.0, 0.0), 1.5 * R * frame.scale, GHOST)
     _dot(surface, frame(0.0, 0.0), 1.5 * R * frame.scale, INK, filled=False)
-    _dot(surface, frame(s * c, s * sn), 0.08 * R * frame.scale, GOAL)  # mass centre G
+    _dot(surface, frame(s * c, s * sn), 0.08 * R * frame.scale, INK, filled=False)  # G
     tx = frame(target, -h)
     size = 0.12 * l * frame.scale
     _bar(surface, (tx[0], tx[1] - 1.2 * size), (tx[0], tx[1] + 1.2 * size), 3, GOAL)
