@@ -283,8 +283,21 @@ class EnvConfig:
 CONFIGS: dict[str, EnvConfig] = {
     "Lagrange/TwoLinkArm-v0": EnvConfig(
         scales={"theta1": 0.05, "theta2": 0.05},
-        R=1.0,
         region={"theta1": 0.3, "theta2": 0.3, "theta1_dot": 0.5, "theta2_dot": 0.5},
+    ),
+    "Lagrange/Acrobot-v0": EnvConfig(
+        default_scale=0.1,
+        region={"theta1": 0.01, "theta2": 0.01, "theta1_dot": 0.02, "theta2_dot": 0.02},
+    ),
+    "Lagrange/RollingDisk-v0": EnvConfig(
+        # the cyclic x, z, psi and the constrained x', z' dropped (see disk_stability)
+        states=("theta", "phi", "theta_dot", "phi_dot", "psi_dot"),
+        scales={"theta": 0.05, "phi": 1.0, "psi_dot": 0.3},
+        region={"theta": 0.02, "phi": 0.2, "theta_dot": 0.1, "phi_dot": 0.1, "psi_dot": 0.5},
+    ),
+    "Lagrange/BeadOnRod-v0": EnvConfig(
+        scales={"r": 0.1, "phi": 0.2, "r_dot": 0.1},
+        region={"r": 0.1, "phi": 0.05, "r_dot": 0.1, "phi_dot": 0.1},
     ),
 }
 """Default LQR choices by environment id (others: the full state, unit scales, R = 1)."""

@@ -168,3 +168,96 @@ def test_bad_weights_and_periods_are_refused():
         lqr.discretize(A, B, -0.1)
     with pytest.raises(ValueError, match=r"B must have shape \(2, m\)"):
         lqr.controllability(A, np.ones((3, 1)))
+
+
+# ---- closed loops on the environments ------------------------------------------------
+
+envs = pytest.importorskip("envs")
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
+    # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
+    # within lqr.CONFIGS[env_id].region (about half the largest region with >= 99 %
+    # success, measured by lqr.largest_region): every start must succeed (the issue's
+    # bar is 99 %; we keep the margin so that the test states the region honestly)
+    lqr_run = lqr.evaluate_near(env_id, episodes=100, seed=0)
+    assert lqr_run.success_rate >= 0.99, lqr_run.success_rate
+    zero = lqr.evaluate_near(env_id, lqr.ZeroPolicy, episodes=100, seed=0)
+    assert zero.success_rate <= 0.2, zero.success_rate  # unforced: falls / drifts away
+    assert lqr_run.returns.mean() > zero.returns.mean()
+
+
+def test_policy_scores_with_sb3_evaluate_policy():
+    import gymnasium as gym
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    env = gym.make("Lagrange/TwoLinkArm-v0")
+    policy = lqr.LQRPolicy(env)
+    # the fully actuated arm from its own start distribution (any start, any goal)
+    mean, _ = evaluate_policy(policy, env, n_eval_episodes=3, deterministic=True)
+    zero, _ = evaluate_policy(lqr.ZeroPolicy(env), env, n_eval_episodes=3)
+    assert mean > zero
+
+
+def test_predict_is_batched_and_saturates():
+    import gymnasium as gym
+
+    env = gym.make("Lagrange/Acrobot-v0")
+    obs, _ = env.reset(seed=0, options={"state": [np.pi + 0.3, np.pi - 0.2, 0.0, 0.0]})
+    policy = lqr.LQRPolicy(env)
+    one, state = policy.predict(obs)
+    many, _ = policy.predict(np.stack([obs, obs, obs]))
+    assert state is None and one.shape == (1,) and many.shape == (3, 1)
+    np.testing.assert_array_equal(many, np.stack([one] * 3))
+    assert one.dtype == np.float32 and abs(one[0]) == 1.0  # 0.3 rad is far: saturated
+
+
+def test_policy_acts_on_the_goal_in_the_observation():
+    import gymnasium as gym
+
+    env = gym.make("Lagrange/TwoLinkArm-v0")
+    obs, _ = env.reset(seed=3, options={"goal": [0.5, -1.0]})
+    policy = lqr.LQRPolicy(env)
+    x0, u0 = env.unwrapped.operating_point()
+    at_goal = env.unwrapped.operating_point(obs)[0]
+    np.testing.assert_allclose(at_goal, x0, atol=1e-6)  # float32 observation of the goal
+    # at the goal the action is the gravity-holding torque, in action units
+    a = policy.act(x0, x0, u0)[0]
+    np.testing.assert_allclose(a, env.unwrapped.input_to_action(u0), rtol=1e-12)
+
+
+def test_uncontrollable_env_setup_is_reported(capsys):
+    import gymnasium as gym
+
+    env = gym.make("Lagrange/RollingDisk-v0")
+    env.reset(seed=0)
+    policy = lqr.LQRPolicy(env)
+    x0, u0 = env.unwrapped.operating_point()
+    x0[[5, 6, 9]] = 0.0  # the disk standing still: the lean cannot be reached
+    with pytest.raises(lqr.UncontrollableError, match="theta 1.00"):
+        policy.design(x0, u0)
+
+
+def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
+    out = tmp_path / "bead.png"
+    assert lqr.main(["Lagrange/BeadOnRod-v0", "--episodes", "10", "--plot", str(out)]) == 0
+    text = capsys.readouterr().out
+    for part in (
+        "A (continuous",
+        "open-loop eigenvalues",
+        "controllability: rank 4 of 4",
+        "gain K",
+        "closed-loop |z|",
+        "LQR: success 10/10",
+        "zero torque: success",
+    ):
+        assert part in text
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    assert list(tmp_path.iterdir()) == [out]  # atomic: no temporary file left behind
+
+
+def test_command_line_rejects_unknown_env(capsys):
+    with pytest.raises(SystemExit):
+        lqr.main(["Lagrange/Acrobat-v0"])
+    assert "Did you mean 'Lagrange/Acrobot-v0'" in capsys.readouterr().err
