@@ -1,0 +1,185 @@
+"""Speed and accuracy of the Lagrange environments against Gymnasium's Acrobot-v1.
+
+    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick]
+
+Measured in one run, so the ratios hold on a shared machine even when absolute figures
+move: `gymnasium.make` time per id (warm model cache; numba's import, paid once per process,
+is reported apart), single-env steps/s through `gymnasium.make` with its default wrappers
+(actions drawn beforehand, never `Box.sample`), env-steps/s of the native vector env
+(`make_vec(..., vectorization_mode="vector_entry_point")`) at N = 64, 1024, 16384 against a
+`SyncVectorEnv` of Acrobot-v1 copies, and the relative energy error of one unforced
+episode. Acrobot-v1's energy is measured with this project's `two_link_arm` model at its
+parameters (m = 1, l = 1, lc = 0.5, I = 1 about the mass centre, g = 9.8; its second
+angle is relative, ours absolute), from the same large swing as ours.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+# this file's own name would shadow the package: put the project root first
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import dynamics  # noqa: E402
+import envs  # noqa: E402
+
+SIZES = (64, 1024, 16384)
+SWING = np.array([1.5, 1.5, 0.0, 0.0])  # a large swing (absolute angles), released at rest
+
+
+def steps_per_second(env, actions: np.ndarray, seconds: float) -> float:
+    """Steps/s of env.step over pre-drawn actions, resetting when an episode ends."""
+    env.reset(seed=0)
+    n, k, start = len(actions), 0, time.perf_counter()
+    while True:
+        for _ in range(200):
+            _, _, term, trunc, _ = env.step(actions[k % n])
+            k += 1
+            if term or trunc:
+                env.reset()
+        elapsed = time.perf_counter() - start
+        if elapsed > seconds:
+            return k / elapsed
+
+
+def vector_steps_per_second(vec, seconds: float, min_steps: int = 3) -> float:
+    """Env-steps/s of a vector env (num_envs copies per step) over pre-drawn actions."""
+    rng = np.random.default_rng(0)
+    actions = (
+        [vec.action_space.sample() for _ in range(4)]
+        if not hasattr(vec.single_action_space, "shape") or vec.single_action_space.shape == ()
+        else [rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32) for _ in range(4)]
+    )
+    vec.reset(seed=0)
+    vec.step(actions[0])  # first call: numba loads its cached kernels
+    k, start = 0, time.perf_counter()
+    while True:
+        vec.step(actions[k % 4])
+        k += 1
+        elapsed = time.perf_counter() - start
+        if elapsed > seconds and k >= min_steps:
+            return k * vec.num_envs / elapsed
+
+
+def unforced_drift(env_id: str, state=None, episodes: int = 20) -> float:
+    """Largest relative energy error over unforced episodes from the env's own starting
+    distribution (or from `state`), relative to the scale of tests/envs/test_physics.py."""
+    vec = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    options = None if state is None else {"state": state}
+    _, info = vec.reset(seed=0, options=options)
+    e0 = info["energy"]
+    scale = energy_scale(env_id, vec.unwrapped.system, e0)
+    alive, worst = np.ones(episodes, dtype=bool), 0.0
+    zero = np.zeros(vec.action_space.shape)
+    for _ in range(vec.unwrapped.max_episode_steps):
+        _, _, term, trunc, info = vec.step(zero)
+        worst = max(worst, (np.abs(info["energy"] - e0) / scale)[alive].max(initial=0.0))
+        alive &= ~(term | trunc)
+        if not alive.any():
+            break
+    return worst
+
+
+def energy_scale(env_id: str, system, e0: np.ndarray):
+    p = system.parameters
+    if "Arm" in env_id or "Acrobot" in env_id:  # potential range, inverted minus hanging
+        return 2 * (p["m1"] * p["g"] * p["l1"] + p["m2"] * p["g"] * (p["l"] + p["l2"]))
+    if "Bead" in env_id:
+        return p["m"] * p["g"] * p["rod_length"] / 2
+    if "Crank" in env_id:
+        return p["M"] * p["g"] * abs(p["s"])
+    return np.abs(e0)  # the disk: its own energy
+
+
+def acrobot_v1_drift(steps: int = 500) -> float:
+    """Relative energy error of Acrobot-v1 over an unforced episode from SWING."""
+    arm = dynamics.get_model("two_link_arm").compile(
+        m1=1.0, m2=1.0, l=1.0, l1=0.5, l2=0.5, Ibar1=1.0, Ibar2=1.0, g=9.8
+    )
+    env = gym.make("Acrobot-v1", max_episode_steps=steps).unwrapped
+    env.reset(seed=0)
+    env.state = np.array([SWING[0], SWING[1] - SWING[0], 0.0, 0.0])
+
+    def energy(s):  # Acrobot-v1 state (theta1, theta2 relative, rates) -> absolute angles
+        return float(arm.energy([s[0], s[0] + s[1], s[2], s[2] + s[3]]))
+
+    e0, worst = energy(env.state), 0.0
+    for _ in range(steps):
+        env.step(1)  # action 1: zero torque
+        worst = max(worst, abs(energy(env.state) - e0))
+    scale = 2 * (1.0 * 9.8 * 0.5 + 1.0 * 9.8 * 1.5)
+    return worst / scale
+
+
+def make_time(env_id: str) -> float:
+    start = time.perf_counter()
+    gym.make(env_id)
+    return time.perf_counter() - start
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter timings (noisier)")
+    parser.add_argument("--sizes", type=int, nargs="*", default=list(SIZES))
+    args = parser.parse_args(argv)
+    seconds = 0.5 if args.quick else 2.0
+
+    start = time.perf_counter()
+    import envs.base  # noqa: F401  (numba and the task kernels: once per process)
+
+    print(f"import of envs.base (numba): {time.perf_counter() - start:.2f} s")
+    for env_id in envs.ENV_IDS:  # warm the model cache and numba's kernel cache
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+    rng = np.random.default_rng(0)
+    rows = []
+    for env_id in ("Acrobot-v1",) + envs.ENV_IDS:
+        made = make_time(env_id)
+        env = gym.make(env_id)
+        if env_id == "Acrobot-v1":
+            actions = rng.integers(0, 3, 1000)
+        else:
+            actions = rng.uniform(-1, 1, (1000,) + env.action_space.shape).astype(np.float32)
+        rows.append((env_id, made, steps_per_second(env, actions, seconds)))
+    base = rows[0][2]
+    print("\n| env | make (s) | steps/s, single env | vs Acrobot-v1 |")
+    print("|---|---|---|---|")
+    for env_id, made, sps in rows:
+        print(f"| {env_id} | {made:.3f} | {sps:,.0f} | {sps / base:.2f}x |")
+
+    print("\n| env | " + " | ".join(f"N = {n}" for n in args.sizes) + " |")
+    print("|---|" + "---|" * len(args.sizes))
+    sync = []
+    for n in args.sizes:
+        vec = gym.vector.SyncVectorEnv([lambda: gym.make("Acrobot-v1")] * n)
+        sync.append(vector_steps_per_second(vec, seconds))
+        vec.close()
+    print("| Acrobot-v1 SyncVectorEnv | " + " | ".join(f"{s:,.0f}" for s in sync) + " |")
+    for env_id in envs.ENV_IDS:
+        cells = []
+        for n, s in zip(args.sizes, sync):
+            vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+            v = vector_steps_per_second(vec, seconds)
+            cells.append(f"{v:,.0f} ({v / s:.0f}x)")
+        print(f"| {env_id} native | " + " | ".join(cells) + " |")
+
+    print("\n| env | control period (s) | substeps | relative energy error, unforced episode |")
+    print("|---|---|---|---|")
+    print(f"| Acrobot-v1 (large swing, 100 s) | 0.2 | 1 | {acrobot_v1_drift():.1e} |")
+    swing = unforced_drift("Lagrange/TwoLinkArm-v0", state=SWING, episodes=1)
+    print(f"| Lagrange/TwoLinkArm-v0 (same swing, 10 s) | 0.05 | 25 | {swing:.1e} |")
+    for env_id in envs.ENV_IDS:
+        u = gym.make(env_id).unwrapped
+        drift = unforced_drift(env_id)
+        print(f"| {env_id} (own starts) | {u.control_period} | {u.substeps} | {drift:.1e} |")
+
+
+if __name__ == "__main__":
+    main()
