@@ -1,0 +1,198 @@
+"""Score an agent on an environment: `python -m agents.evaluate ENV_ID --agent lqr`.
+
+Agents: random, zero, heuristic (the environment's model-based baseline), lqr, or the
+path of a trained model (model.zip or its run directory). Episodes run side by side in the
+environment's native vector env (one batched step for all of them); `--video DIR` records
+the first episode through Gymnasium's RecordVideo.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from .common import DEFAULT_TORCH_THREADS, check_env_id, non_negative_int, positive_int
+from .policies import (
+    BeadCascadePolicy,
+    GravityPDPolicy,
+    RandomPolicy,
+    SB3Policy,
+    SwingUpPolicy,
+    ZeroPolicy,
+)
+
+BASELINES = ("random", "zero", "heuristic", "lqr")
+HEURISTICS = {
+    "Lagrange/TwoLinkArm-v0": ("PD + gravity compensation", GravityPDPolicy),
+    "Lagrange/Acrobot-v0": ("energy swing-up + LQR", SwingUpPolicy),
+    "Lagrange/BeadOnRod-v0": ("cascaded PD (ball and beam)", BeadCascadePolicy),
+}
+"""The model-based heuristic of each environment that has one: (description, class)."""
+
+
+@dataclass(frozen=True)
+class EvalStats:
+    """Per-episode returns, lengths and success (the task's criterion at the last step)."""
+
+    returns: np.ndarray
+    lengths: np.ndarray
+    successes: np.ndarray
+
+    @property
+    def mean_return(self) -> float:
+        return float(self.returns.mean())
+
+    @property
+    def std_return(self) -> float:
+        return float(self.returns.std())
+
+    @property
+    def success_rate(self) -> float:
+        return float(self.successes.mean())
+
+    @property
+    def mean_length(self) -> float:
+        return float(self.lengths.mean())
+
+    def summary(self) -> str:
+        return (
+            f"return {self.mean_return:.1f} +- {self.std_return:.1f}, success "
+            f"{self.success_rate:.0%}, length {self.mean_length:.0f} "
+            f"({len(self.returns)} episodes)"
+        )
+
+
+def make_agent(name: str, env, seed: int = 0):
+    """A policy with SB3's predict for `env` (a Lagrange env, single or vector)."""
+    space = getattr(env, "single_action_space", env.action_space)
+    if name == "random":
+        return RandomPolicy(space, seed)
+    if name == "zero":
+        return ZeroPolicy(space)
+    env_id = env.spec.id if env.spec is not None else None
+    if name == "heuristic":
+        if env_id not in HEURISTICS:
+            raise ValueError(
+                f"No heuristic baseline for {env_id!r}; environments with one: "
+                f"{', '.join(HEURISTICS)}."
+            )
+        return HEURISTICS[env_id][1](env)
+    if name == "lqr":
+        from .lqr import LQRPolicy
+
+        return LQRPolicy(env)
+    path = Path(name)
+    if path.suffix == ".zip" or path.is_dir() or path.exists():
+        return SB3Policy.load(path)
+    raise ValueError(
+        f"Unknown agent {name!r}: expected one of {', '.join(BASELINES)} or the path of a "
+        f"trained model (model.zip or its run directory)."
+    )
+
+
+def evaluate(
+    env_id: str,
+    agent: str | object,
+    episodes: int = 20,
+    seed: int = 0,
+    video_dir: str | Path | None = None,
+    deterministic: bool = True,
+) -> EvalStats:
+    """Run `episodes` episodes of `agent` (a name, a path or a policy object) from seeds
+    seed, seed + 1, ...; record the first one as a video if `video_dir` is given."""
+    env_id = check_env_id(env_id)
+    if episodes < 1:
+        raise ValueError(f"episodes must be a positive integer, got {episodes}.")
+    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    try:
+        venv.spec.id = env_id  # the vector env's spec names the registered id
+        policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
+        stats = _run(venv, policy, seed, deterministic)
+    finally:
+        venv.close()
+    if video_dir is not None:
+        record_video(env_id, policy, video_dir, seed, deterministic)
+    return stats
+
+
+def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
+    """The first episode of every copy (the vector env autoresets the next step)."""
+    n = venv.num_envs
+    obs, _ = venv.reset(seed=seed)
+    returns, lengths = np.zeros(n), np.zeros(n, dtype=np.int64)
+    successes = np.zeros(n, dtype=bool)
+    running = np.ones(n, dtype=bool)
+    while running.any():
+        action, _ = policy.predict(obs, deterministic=deterministic)
+        obs, reward, terminated, truncated, info = venv.step(action)
+        returns[running] += reward[running]
+        lengths[running] += 1
+        done = running & (terminated | truncated)
+        successes[done] = np.asarray(info["is_success"])[done]
+        running &= ~done
+    return EvalStats(returns, lengths, successes)
+
+
+def record_video(env_id: str, policy, video_dir, seed: int = 0, deterministic=True) -> Path:
+    """One episode rendered to `video_dir` through Gymnasium's RecordVideo; returns it."""
+    video_dir = Path(video_dir)
+    env = gym.make(env_id, render_mode="rgb_array")
+    name = env_id.replace("/", "-")
+    env = gym.wrappers.RecordVideo(env, str(video_dir), name_prefix=name, disable_logger=True)
+    obs, _ = env.reset(seed=seed)
+    done = False
+    while not done:
+        action, _ = policy.predict(obs, deterministic=deterministic)
+        obs, _, terminated, truncated, _ = env.step(action)
+        done = terminated or truncated
+    env.close()
+    return video_dir / f"{name}-episode-0.mp4"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.evaluate",
+        description="Mean and std of the return, success rate and episode length of an agent.",
+    )
+    parser.add_argument("env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v0")
+    parser.add_argument(
+        "--agent",
+        required=True,
+        help=f"{', '.join(BASELINES)}, or a trained model (model.zip or its run directory)",
+    )
+    parser.add_argument("--episodes", type=positive_int, default=20)
+    parser.add_argument("--seed", type=non_negative_int, default=0)
+    parser.add_argument("--video", metavar="DIR", help="record the first episode to DIR (mp4)")
+    parser.add_argument("--stochastic", action="store_true", help="sample trained policies")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        env_id = check_env_id(args.env_id)
+    except ValueError as exc:
+        parser.error(str(exc))
+    if args.agent not in BASELINES and not Path(args.agent).exists():
+        parser.error(
+            f"unknown agent {args.agent!r}: choose {', '.join(BASELINES)} or the path of a "
+            f"trained model"
+        )
+    from .common import set_torch_threads
+
+    set_torch_threads(DEFAULT_TORCH_THREADS)
+    stats = evaluate(env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic)
+    print(f"{args.agent} on {env_id}: {stats.summary()}")
+    if args.video:
+        print(f"Video in {args.video}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
