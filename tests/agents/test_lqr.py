@@ -178,9 +178,9 @@ envs = pytest.importorskip("envs")
 @pytest.mark.parametrize("env_id", envs.ENV_IDS)
 def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
     # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
-    # within lqr.CONFIGS[env_id].region (about half the largest region with >= 99 %
-    # success, measured by lqr.largest_region): every start must succeed (the issue's
-    # bar is 99 %; we keep the margin so that the test states the region honestly)
+    # within lqr.CONFIGS[env_id].region, at most 1/1.6 of the largest region with >= 99 %
+    # success measured by lqr.largest_region (see CONFIGS), so the 99 % bar holds
+    # with a margin rather than by the luck of the seed
     lqr_run = lqr.evaluate_near(env_id, episodes=100, seed=0)
     assert lqr_run.success_rate >= 0.99, lqr_run.success_rate
     zero = lqr.evaluate_near(env_id, lqr.ZeroPolicy, episodes=100, seed=0)
@@ -191,8 +191,9 @@ def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
 def test_policy_scores_with_sb3_evaluate_policy():
     import gymnasium as gym
     from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
 
-    env = gym.make("Lagrange/TwoLinkArm-v0")
+    env = Monitor(gym.make("Lagrange/TwoLinkArm-v0"))
     policy = lqr.LQRPolicy(env)
     # the fully actuated arm from its own start distribution (any start, any goal)
     mean, _ = evaluate_policy(policy, env, n_eval_episodes=3, deterministic=True)
