@@ -193,6 +193,10 @@ def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.
 def _weights(W, n: int, name: str) -> np.ndarray:
     W = np.asarray(W, dtype=np.float64)
     if W.ndim == 1:
+        if len(W) != n:
+            raise ValueError(
+                f"{name} must be ({n}, {n}) or a diagonal of length {n}, got {len(W)}."
+            )
         W = np.diag(W)
     if W.shape != (n, n):
         raise ValueError(f"{name} must be ({n}, {n}) or a diagonal of length {n}, got {W.shape}.")
@@ -582,7 +586,7 @@ def describe(d: LQRDesign) -> str:
     )
 
 
-def plot_response(env_id: str, path: str, seed: int = 0, **env_kwargs) -> None:
+def plot_response(env_id: str, path: str, seed: int = 0, Q=None, R=None, **env_kwargs) -> None:
     """The closed-loop response from one perturbed start (errors and actions vs time)."""
     import gymnasium as gym
     import matplotlib
@@ -595,7 +599,7 @@ def plot_response(env_id: str, path: str, seed: int = 0, **env_kwargs) -> None:
         base = env.unwrapped
         env.reset(seed=seed)
         goal = base.goal
-        policy = LQRPolicy(env)
+        policy = LQRPolicy(env, Q=Q, R=R)
         region = config_for(env_id).region
         vec_like = _OneRow(base)
         start = perturbed_starts(vec_like, region, np.random.default_rng(seed))[0]
@@ -643,6 +647,15 @@ class _OneRow:
         return x0[None], u0[None]
 
 
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated numbers, got {text!r}"
+        ) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m agents.lqr",
@@ -655,6 +668,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="first seed (0)")
     parser.add_argument("--scale", type=float, default=1.0, help="multiple of the start region")
     parser.add_argument("--plot", metavar="FILE", help="save the closed-loop response here")
+    parser.add_argument(
+        "--q", type=_floats, metavar="W,W,...", help="diagonal of Q over the regulated state"
+    )
+    parser.add_argument("--r", type=_floats, metavar="W,...", help="diagonal of R over actions")
     parser.add_argument(
         "--measure-region",
         action="store_true",
@@ -677,32 +694,35 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown environment {args.env_id!r}.{hint} Known: {', '.join(envs.ENV_IDS)}")
     env = gym.make(args.env_id)
     env.reset(seed=args.seed)
-    policy = LQRPolicy(env)
     try:
+        policy = LQRPolicy(env, Q=args.q, R=args.r)
         print(f"{args.env_id}: LQR at the operating point of the goal drawn with seed {args.seed}")
         print(describe(policy.design()))
     except UncontrollableError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
+    except ValueError as e:
+        parser.error(str(e))
     finally:
         env.close()
     cfg = config_for(args.env_id)
     region = {k: args.scale * v for k, v in cfg.region.items()}
     print(f"\nstarts: operating point + uniform perturbation within +- {region}")
-    for name, pol in (("LQR", None), ("zero torque", ZeroPolicy)):
+    lqr_policy = lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)  # noqa: E731
+    for name, pol in (("LQR", lqr_policy), ("zero torque", ZeroPolicy)):
         r = evaluate_near(args.env_id, pol, args.episodes, args.seed, scale=args.scale)
         print(
             f"{name:>11}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}), "
             f"return {r.returns.mean():.2f} +- {r.returns.std():.2f}"
         )
     if args.measure_region:
-        s, r = largest_region(args.env_id, episodes=args.episodes, seed=args.seed)
+        s, r = largest_region(args.env_id, lqr_policy, episodes=args.episodes, seed=args.seed)
         print(
             f"largest region with >= 99% success: {s:g} x the above "
             f"({ {k: s * v for k, v in cfg.region.items()} }), success {r.success_rate:.0%}"
         )
     if args.plot:
-        plot_response(args.env_id, args.plot, args.seed)
+        plot_response(args.env_id, args.plot, args.seed, Q=args.q, R=args.r)
         print(f"saved {args.plot}")
     return 0
 
