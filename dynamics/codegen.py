@@ -195,6 +195,23 @@ def generate(d: Derived, key: str) -> str:
             x_args + unpack_u + unpack_z,
         ),
     ]
+    printer = _Printer({"fully_qualified_modules": True})
+    conditions = [printer.doprint(convert(e)) for e in spec.conditions.values()]
+    parts.append(
+        "\n".join(
+            [
+                "",
+                "",
+                f"CONDITIONS = {tuple(spec.conditions)!r}",
+                "",
+                "",
+                "def conditions(p):",
+                '    """Values that must be > 0 for the parameters to describe a valid system."""',
+                *["    " + h for h in unpack_p],
+                f"    return ({''.join(c + ', ' for c in conditions)})",
+            ]
+        )
+    )
     parts.append(_vectorized(len(matrix_exprs), matrix_exprs + list(rhs), x_args + unpack_u))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

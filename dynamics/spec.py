@@ -43,6 +43,8 @@ class ModelSpec:
         T, V and forces may use them, and the generalised force that keeps them on their
         schedule is reported as an output named `reaction_<name>`.
     outputs: further named expressions of q, qdot, qddot, t, inputs (reported by the system).
+    conditions: {statement: expression in the parameters that must be > 0}, checked when
+        the model is compiled with numbers (e.g. {"l > R + |h|": l - R - Abs(h)}).
     """
 
     name: str
@@ -55,6 +57,7 @@ class ModelSpec:
     constraints: tuple = ()
     prescribed: Mapping = field(default_factory=dict)
     outputs: Mapping = field(default_factory=dict)
+    conditions: Mapping = field(default_factory=dict)
     description: str = ""
 
     def __post_init__(self):
@@ -81,6 +84,7 @@ class ModelSpec:
             sp.srepr(sorted(((sp.srepr(k), sp.srepr(v)) for k, v in self.prescribed.items()))),
             sp.srepr(sorted(((k, sp.srepr(v)) for k, v in self.outputs.items()))),
             repr(sorted((str(k), v) for k, v in self.parameters.items())),
+            sp.srepr(sorted(((k, sp.srepr(v)) for k, v in self.conditions.items()))),
         ]
         return "\n".join(parts)
 

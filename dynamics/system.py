@@ -60,6 +60,11 @@ class System:
             self.name, module.PARAMETERS, module.DEFAULTS, module.POSITIVE, params or {}
         )
         self.parameters: dict[str, float] = dict(zip(module.PARAMETERS, self._p.tolist()))
+        for statement, value in zip(module.CONDITIONS, module.conditions(self._p)):
+            if not value > 0:
+                raise ValueError(
+                    f"{self.name}: parameters violate {statement} ({self.parameters})."
+                )
         self.units: dict[str, str] = dict(zip(module.PARAMETERS, module.UNITS))
 
     def __repr__(self) -> str:

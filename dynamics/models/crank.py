@@ -125,5 +125,8 @@ def eccentric_disk_slider() -> ModelSpec:
             h: Param(0.0, "m", "height of O above the slider's line (may be < 0)", False),
             g: Param(9.81, "m/s^2", "gravitational acceleration"),
         },
+        conditions={
+            "l > R + |h| (else the rod stands vertical and the mechanism locks)": l - R - sp.Abs(h)
+        },
         description=eccentric_disk_slider.__doc__,
     )

@@ -86,3 +86,12 @@ def test_non_pfaffian_constraint_is_rejected():
     )
     with pytest.raises(ValueError, match="linear in the coordinate rates"):
         dynamics.Model(spec).equations()
+
+
+def test_model_specific_parameter_conditions_are_checked():
+    # the crank of problem 7/3 locks unless the rod is longer than R + |h|
+    with pytest.raises(ValueError, match=r"violate l > R \+ \|h\|"):
+        dynamics.get_model("eccentric_disk_slider").compile(l=0.1, R=0.1)
+    with pytest.raises(ValueError, match=r"violate l > R \+ \|h\|"):
+        dynamics.get_model("eccentric_disk_slider").compile(h=-0.25)
+    dynamics.get_model("eccentric_disk_slider").compile(h=-0.15)  # 0.3 > 0.1 + 0.15
