@@ -140,20 +140,28 @@ def main(argv: list[str] | None = None) -> None:
         env.reset(seed=0)
         env.step(env.action_space.sample())
     rng = np.random.default_rng(0)
-    rows = []
-    for env_id in ("Acrobot-v1",) + envs.ENV_IDS:
-        made = make_time(env_id)
+    ids = ("Acrobot-v1",) + envs.ENV_IDS
+    made = {env_id: make_time(env_id) for env_id in ids}
+    runs = {}
+    for env_id in ids:
         env = gym.make(env_id)
         if env_id == "Acrobot-v1":
             actions = rng.integers(0, 3, 1000)
         else:
             actions = rng.uniform(-1, 1, (1000,) + env.action_space.shape).astype(np.float32)
-        rows.append((env_id, made, steps_per_second(env, actions, seconds)))
-    base = rows[0][2]
-    print("\n| env | make (s) | steps/s, single env | vs Acrobot-v1 |")
+        runs[env_id] = (env, actions)
+    # rounds that alternate between the envs, each against Acrobot-v1 in the same round,
+    # so that a shared machine's changing load cancels from the ratios (medians shown)
+    sps = {env_id: [] for env_id in ids}
+    for _ in range(5):
+        for env_id in ids:
+            sps[env_id].append(steps_per_second(*runs[env_id], seconds / 5))
+    base = np.array(sps["Acrobot-v1"])
+    print("\n| env | make (s) | steps/s, single env | vs Acrobot-v1 (same rounds) |")
     print("|---|---|---|---|")
-    for env_id, made, sps in rows:
-        print(f"| {env_id} | {made:.3f} | {sps:,.0f} | {sps / base:.2f}x |")
+    for env_id in ids:
+        ratio = np.median(np.array(sps[env_id]) / base)
+        print(f"| {env_id} | {made[env_id]:.3f} | {np.median(sps[env_id]):,.0f} | {ratio:.2f}x |")
 
     print("\n| env | " + " | ".join(f"N = {n}" for n in args.sizes) + " |")
     print("|---|" + "---|" * len(args.sizes))
