@@ -31,6 +31,7 @@ HEURISTICS = {
     "Lagrange/TwoLinkArm-v0": ("PD + gravity compensation", GravityPDPolicy),
     "Lagrange/Acrobot-v0": ("energy swing-up + LQR", SwingUpPolicy),
     "Lagrange/BeadOnRod-v0": ("cascaded PD (ball and beam)", BeadCascadePolicy),
+    "Lagrange/CrankSlider-v0": ("PD + gravity compensation", GravityPDPolicy),
 }
 """The model-based heuristic of each environment that has one: (description, class)."""
 

@@ -13,7 +13,7 @@ import inspect
 import re
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +54,7 @@ class TrainResult:
     eval_mean: float | None
     eval_std: float | None
     success_rate: float | None
+    model: BaseAlgorithm | None = field(default=None, repr=False)
 
 
 def default_run_dir(env_id: str, algo: str, seed: int) -> Path:
@@ -203,7 +204,8 @@ def train(
     """Train `algo` on `env_id`; return where the model is and how it evaluated.
 
     timesteps, n_envs: override the YAML's n_timesteps / n_envs. eval_freq and
-    checkpoint_freq count environment steps (default: total/10 and total/5)."""
+    checkpoint_freq count environment steps (default: total/10 but at least 2000,
+    and total/5)."""
     env_id = check_env_id(env_id)
     hp = hparams.load(algo, env_id)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
@@ -238,7 +240,7 @@ def train(
     train_env, eval_env = make_envs(env_id, hp, n_envs, seed, vectorization, min(eval_episodes, 5))
     curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
     model = _build_or_load(algo, hp, train_env, seed, found, ckpt_dir, verbose)
-    eval_freq = eval_freq or max(total // 10, 1)
+    eval_freq = eval_freq or max(total // 10, 2000)
     checkpoint_freq = checkpoint_freq or max(total // 5, 1)
     checkpoint = AtomicCheckpoint(max(checkpoint_freq // n_envs, 1), ckpt_dir, curves)
     evaluation = EvalCallback(
@@ -277,6 +279,7 @@ def train(
         eval_mean=float(last["mean_return"]) if last else None,
         eval_std=float(last["std_return"]) if last else None,
         success_rate=float(success) if success != "" else None,
+        model=model,
     )
 
 

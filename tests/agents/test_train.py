@@ -1,0 +1,117 @@
+"""Training end to end on every environment, save/load, resume and the command line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import envs
+from agents import train as train_mod
+from agents.policies import SB3Policy
+from agents.train import latest_checkpoint, main, train
+
+# PPO with one env collects rollouts of n_steps = 256 steps: 512 steps are two updates.
+SMALL = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)
+
+
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_a_few_hundred_steps_train_end_to_end(env_id, tmp_path):
+    result = train(env_id, timesteps=512, run_dir=tmp_path, **SMALL)
+    assert result.timesteps == 512
+    for name in (
+        "config.yml",
+        "model.zip",
+        "vecnormalize.pkl",
+        "episodes.csv",
+        "eval.csv",
+        "learning_curve.png",
+    ):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert latest_checkpoint(tmp_path / "checkpoints")[0] == 512
+    rows = (tmp_path / "eval.csv").read_text().splitlines()
+    assert rows[0].startswith("timesteps,mean_return") and rows[1].startswith("512,")
+    assert not list(tmp_path.glob(".*.zip")), "a temporary file was left behind"
+
+
+def test_saved_model_gives_identical_actions(tmp_path):
+    result = train("Lagrange/TwoLinkArm-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+    obs = np.random.default_rng(0).uniform(-1, 1, (32, 10)).astype(np.float32)
+    vecnorm = result.model.get_vec_normalize_env()
+    expected, _ = result.model.predict(vecnorm.normalize_obs(obs), deterministic=True)
+    loaded = SB3Policy.load(tmp_path)
+    actions, _ = loaded.predict(obs, deterministic=True)
+    np.testing.assert_array_equal(actions, expected)  # same weights, same float32 arithmetic
+
+
+def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_path):
+    # A run stopped at its 512-step checkpoint, then resumed to a budget of 1024.
+    train("Lagrange/BeadOnRod-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+    first = (tmp_path / "eval.csv").read_text().splitlines()
+    result = train("Lagrange/BeadOnRod-v0", timesteps=1024, run_dir=tmp_path, resume=True, **SMALL)
+    model = result.model
+    assert model.num_timesteps == 1024
+    assert model._total_timesteps == 1024  # a restarted schedule would count 512 here
+    # the linear schedule is evaluated on the progress of the whole run, not of the resume
+    progress = 1.0 - model.num_timesteps / model._total_timesteps
+    assert model._current_progress_remaining == pytest.approx(progress)
+    lr = model.policy.optimizer.param_groups[0]["lr"]
+    assert lr == pytest.approx(model.lr_schedule(progress))
+    # the learning curve keeps the rows of the first part and continues after them
+    rows = (tmp_path / "eval.csv").read_text().splitlines()
+    assert rows[: len(first)] == first and rows[-1].startswith("1024,")
+
+
+def test_resume_without_a_checkpoint_starts_fresh(tmp_path, capsys):
+    result = train("Lagrange/BeadOnRod-v0", timesteps=256, run_dir=tmp_path, resume=True, **SMALL)
+    assert result.timesteps == 256
+    assert "starting a fresh run" in capsys.readouterr().err
+
+
+def test_hyperparameters_exist_for_every_env_and_algorithm():
+    from agents import hparams
+
+    for algo in hparams.ALGOS:
+        for env_id in envs.ENV_IDS:
+            kwargs = train_mod.algo_kwargs(algo, hparams.load(algo, env_id), 2)
+            assert "policy_kwargs" in kwargs
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["Lagrange/TwoLinkArm-v1"], "Did you mean 'Lagrange/TwoLinkArm-v0'"),
+        (["TwoLinkArm"], "Did you mean 'Lagrange/TwoLinkArm-v0'"),
+        (["Lagrange/Acrobot-v0", "--algo", "dqn"], "unknown algorithm 'dqn'"),
+        (["Lagrange/Acrobot-v0", "--timesteps", "-5"], "expected a positive integer, got -5"),
+        (["Lagrange/Acrobot-v0", "--timesteps", "lots"], "expected a positive integer"),
+        (["Lagrange/Acrobot-v0", "--n-envs", "0"], "expected a positive integer, got 0"),
+        (["Lagrange/Acrobot-v0", "--seed", "-1"], "expected an integer >= 0, got -1"),
+    ],
+)
+def test_cli_rejects_bad_arguments_with_clear_messages(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_cli_trains_and_reports(tmp_path, capsys):
+    code = main(
+        [
+            "Lagrange/BeadOnRod-v0",
+            "--timesteps",
+            "256",
+            "--n-envs",
+            "1",
+            "--eval-freq",
+            "256",
+            "--eval-episodes",
+            "1",
+            "--run-dir",
+            str(tmp_path),
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "ppo on Lagrange/BeadOnRod-v0: 256 steps" in out and "model.zip" in out
