@@ -184,6 +184,19 @@ class System:
         without argument checks: the environments' hot path."""
         self._m.rk4_batch(T, X, U, self._p, dt / substeps, substeps, out)
 
+    def energy_terms_unchecked(self, T, X, out: np.ndarray) -> None:
+        """`energy_terms` on contiguous float64 rows into `out` (N, 2), without checks."""
+        self._m.energy_batch(T, X, self._p, out)
+
+    def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
+        """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
+        self._m.residual_batch(T, X, self._p, out)
+
+    def outputs_unchecked(self, T, X, U, out: np.ndarray) -> None:
+        """`outputs` on contiguous float64 rows into `out` (N, len(output_names)), columns in
+        the order of `output_names`, without checks."""
+        self._m.outputs_batch(T, X, U, self._p, out)
+
     def project(self, x, t=0.0) -> np.ndarray:
         """x with its rates moved onto the velocity constraints (kinetic-energy metric)."""
         T, X, _, lead = self._batch(t, x, need_u=False)

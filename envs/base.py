@@ -187,7 +187,7 @@ class LagrangianEnv(gym.Env):
         self._F = np.zeros((n, 2), dtype=np.bool_)  # terminated, success
         self._D = np.zeros(n, dtype=np.bool_)  # diverged
         self._Y = np.zeros((n, len(s.output_names) if self.uses_outputs else 0))
-        self._energy_kernel, self._residual_kernel, self._outputs_kernel, self._p = _kernels(s)
+        self._energy_kernel, self._residual_kernel, self._outputs_kernel = _kernels(s)
         self._ready = False
 
     # ---- the contract --------------------------------------------------------------
@@ -323,12 +323,12 @@ class LagrangianEnv(gym.Env):
     def _evaluate(self) -> None:
         """Observation, reward terms, reward and [terminated, success] of every row."""
         if self.uses_outputs:
-            self._outputs_kernel(self._T, self._X, self._U, self._p, self._Y)
+            self._outputs_kernel(self._T, self._X, self._U, self._Y)
         self.evaluate(self._X, self._A, self._G, self._Y, self._c, self._O, self._Q, self._F)
         sum_rows(self._Q, self._R)
 
     def _step_info(self, diverged: bool) -> dict[str, Any]:
-        self._energy_kernel(self._T, self._X, self._p, self._E)
+        self._energy_kernel(self._T, self._X, self._E)
         info = {
             "state": self._X[0].copy(),
             "input": self._U[0].copy(),
@@ -338,13 +338,13 @@ class LagrangianEnv(gym.Env):
             "diverged": diverged,
         }
         if self.system.n_c:
-            self._residual_kernel(self._T, self._X, self._p, self._C)
+            self._residual_kernel(self._T, self._X, self._C)
             info["constraint_residual"] = self._C[0].copy()
         return info
 
     def _reset_info(self, row: int) -> dict[str, Any]:
         X, T = self._X[row : row + 1], self._T[row : row + 1]
-        self._energy_kernel(T, X, self._p, self._E[:1])
+        self._energy_kernel(T, X, self._E[:1])
         info = {
             "state": X[0].copy(),
             "input": np.zeros(self.system.n_u),
@@ -352,7 +352,7 @@ class LagrangianEnv(gym.Env):
             "goal": self._G[row].copy(),
         }
         if self.system.n_c:
-            self._residual_kernel(T, X, self._p, self._C[:1])
+            self._residual_kernel(T, X, self._C[:1])
             info["constraint_residual"] = self._C[0].copy()
         return info
 
@@ -386,9 +386,7 @@ class LagrangianEnv(gym.Env):
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._energy_kernel, self._residual_kernel, self._outputs_kernel, self._p = _kernels(
-            self.system
-        )
+        self._energy_kernel, self._residual_kernel, self._outputs_kernel = _kernels(self.system)
 
 
 class LagrangianVectorEnv(VectorEnv):
@@ -531,7 +529,7 @@ class LagrangianVectorEnv(VectorEnv):
 
     def _info(self, diverged: np.ndarray | None) -> dict[str, Any]:
         env = self._env
-        env._energy_kernel(env._T, env._X, env._p, env._E)
+        env._energy_kernel(env._T, env._X, env._E)
         every = np.ones(self.num_envs, dtype=bool)
         info: dict[str, Any] = {
             "state": env._X.copy(),
@@ -546,7 +544,7 @@ class LagrangianVectorEnv(VectorEnv):
         else:
             info["goal"] = env._G.copy()
         if env.system.n_c:
-            env._residual_kernel(env._T, env._X, env._p, env._C)
+            env._residual_kernel(env._T, env._X, env._C)
             info["constraint_residual"] = env._C.copy()
         info.update({"_" + k: every for k in list(info)})
         return info
@@ -595,11 +593,13 @@ def _compile(cls: type, model: str, params: dict) -> dynamics.System:
 
 
 def _kernels(system: dynamics.System):
-    """The compiled batch kernels behind `System.energy_terms`, `System.constraint_residual`
-    and `System.outputs`, to call on the env's own contiguous buffers without `System`'s
-    per-call argument checks (which would cost more than the RK4 step)."""
-    module = system._m
-    return module.energy_batch, module.residual_batch, module.outputs_batch, system._p
+    """`System`'s unchecked energy, residual and outputs, to call on the env's own
+    contiguous buffers (the checked methods would cost more than the RK4 step)."""
+    return (
+        system.energy_terms_unchecked,
+        system.constraint_residual_unchecked,
+        system.outputs_unchecked,
+    )
 
 
 def _positive_float(name: str, value) -> float:
