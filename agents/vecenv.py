@@ -54,7 +54,7 @@ class GymnasiumVecEnv(VecEnv):
         infos = self._split_infos(info)
         for i in np.flatnonzero(dones):
             final = info["final_info"]
-            infos[i] = {k: v[i] for k, v in final.items() if not k.startswith("_")}
+            infos[i] = _row(final, i)
             infos[i]["terminal_observation"] = info["final_obs"][i]
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         return obs, rewards.astype(np.float32), dones, infos
@@ -67,10 +67,7 @@ class GymnasiumVecEnv(VecEnv):
                 continue
             mask = info.get(f"_{key}", np.ones(self.num_envs, dtype=bool))
             for i in np.flatnonzero(mask):
-                if isinstance(value, dict):
-                    out[i][key] = {k: v[i] for k, v in value.items() if not k.startswith("_")}
-                else:
-                    out[i][key] = value[i]
+                out[i][key] = _row(value, i)
         return out
 
     def close(self) -> None:
@@ -94,9 +91,26 @@ class GymnasiumVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
 
+def _row(value, i: int):
+    """Row i of a batched info value (dicts of arrays recursively, without '_' masks)."""
+    if isinstance(value, dict):
+        return {k: _row(v, i) for k, v in value.items() if not k.startswith("_")}
+    return value[i]
+
+
 def native_vector_env(env_id: str, n_envs: int) -> gym.vector.VectorEnv:
-    """The registry's native batched env (vector_entry_point) in same-step autoreset."""
-    return gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point")
+    """The registry's native batched env (vector_entry_point), asked for same-step
+    autoreset; an env whose constructor does not take `autoreset_mode` is made as it is
+    (and `supports_native` then reports whether SB3 can drive it)."""
+    try:
+        return gym.make_vec(
+            env_id,
+            num_envs=n_envs,
+            vectorization_mode="vector_entry_point",
+            autoreset_mode=AutoresetMode.SAME_STEP,
+        )
+    except (TypeError, ValueError):  # the constructor rejects the keyword
+        return gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point")
 
 
 def supports_native(env_id: str) -> bool:

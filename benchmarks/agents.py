@@ -1,0 +1,105 @@
+"""Benchmark of the agents: scores at the chosen budget, and the speed facts behind defaults.
+
+    python benchmarks/agents.py                 # every env: baselines, LQR, PPO (= agents.check)
+    python benchmarks/agents.py --speed         # torch threads 1 vs 2; env stepping for SB3
+
+The scores part runs the main job (agents.check) into runs/benchmark and prints its table.
+The speed part measures what chose the defaults: PPO training throughput with one and two
+torch threads, and how fast SB3's DummyVecEnv of single envs steps compared with the
+environment's native vector env (which SB3 cannot drive as is: it autoresets on the next
+step, SB3 expects the same step).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+
+import envs  # noqa: E402
+from agents.check import run_check  # noqa: E402
+
+
+def ppo_rate(env_id: str, threads: int, steps: int = 8192) -> float:
+    """PPO env-steps/s with `threads` torch threads (8 envs, the YAML's rollout size)."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    torch.set_num_threads(threads)
+    model = PPO("MlpPolicy", make_vec_env(env_id, 8), n_steps=256, device="cpu", seed=0)
+    start = time.perf_counter()
+    model.learn(steps)
+    return steps / (time.perf_counter() - start)
+
+
+def stepping_rates(env_id: str, n_envs: int = 8, steps: int = 2000) -> tuple[float, float]:
+    """env-steps/s of SB3's DummyVecEnv and of the native vector env (random actions)."""
+    from stable_baselines3.common.env_util import make_vec_env
+
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, n_envs) + _action_shape(env_id))
+    dummy = make_vec_env(env_id, n_envs)
+    dummy.reset()
+    start = time.perf_counter()
+    for a in actions:
+        dummy.step(a)
+    dummy_rate = steps * n_envs / (time.perf_counter() - start)
+    native = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point")
+    native.reset(seed=0)
+    start = time.perf_counter()
+    for a in actions:
+        native.step(a)
+    return dummy_rate, steps * n_envs / (time.perf_counter() - start)
+
+
+def _action_shape(env_id: str) -> tuple[int, ...]:
+    return gym.make(env_id).action_space.shape
+
+
+def speed() -> None:
+    print("| measurement | value |\n|---|---|")
+    env_id = envs.ENV_IDS[0]
+    for threads in (1, 2, 1, 2):
+        print(
+            f"| PPO on {env_id}, torch threads = {threads} | {ppo_rate(env_id, threads):.0f} "
+            f"env-steps/s |",
+            flush=True,
+        )
+    for env_id in envs.ENV_IDS:
+        dummy, native = stepping_rates(env_id)
+        print(
+            f"| {env_id} stepping, 8 envs: DummyVecEnv / native | {dummy:.0f} / "
+            f"{native:.0f} env-steps/s |",
+            flush=True,
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--speed", action="store_true", help="measure threads and env stepping")
+    parser.add_argument("--episodes", type=int, default=50)
+    parser.add_argument("--algo", default="ppo")
+    parser.add_argument("--timesteps", type=int, help="training budget (default: the YAML's)")
+    parser.add_argument("--out", default="runs/benchmark")
+    args = parser.parse_args(argv)
+    if args.speed:
+        speed()
+        return 0
+    start = time.perf_counter()
+    run_check(
+        None, args.algo, args.episodes, 0, args.out, args.timesteps, fresh=True, progress=False
+    )
+    print(f"benchmark wall time {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
