@@ -48,7 +48,7 @@ class Row:
 
 def check_env(
     env_id: str,
-    algo: str,
+    algo: str | None,
     episodes: int,
     seed: int,
     out: Path,
@@ -58,6 +58,7 @@ def check_env(
     log=print,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment."""
+    algo = algo or hparams.check_algo(env_id)
     rows = []
     for name in BASELINES:
         if name == "heuristic" and env_id not in HEURISTICS:
@@ -100,11 +101,12 @@ def markdown_table(rows: list[Row]) -> str:
     return "\n".join(lines)
 
 
-def findings(rows: list[Row], algo: str) -> list[str]:
+def findings(rows: list[Row]) -> list[str]:
     """One sentence per environment: the best agent, and LQR against the trained agent."""
     out = []
     for env_id in dict.fromkeys(r.env_id for r in rows):
         mine = {r.agent: r.stats for r in rows if r.env_id == env_id}
+        algo = [r.agent for r in rows if r.env_id == env_id][-1]  # the trained agent is last
         best = max(mine, key=lambda a: (mine[a].success_rate, mine[a].mean_return))
         text = f"{env_id}: best {best}"
         if "lqr" in mine and algo in mine:
@@ -182,7 +184,7 @@ def plot_comparison(rows: list[Row], path: Path) -> None:
 
 def run_check(
     env_ids: list[str] | None = None,
-    algo: str = "ppo",
+    algo: str | None = None,
     episodes: int = 20,
     seed: int = 0,
     out: str | Path = "runs/check",
@@ -190,7 +192,8 @@ def run_check(
     fresh: bool = False,
     progress: bool = True,
 ) -> list[Row]:
-    """Check every environment (default: all of `envs.ENV_IDS`); write the report to `out`."""
+    """Check every environment (default: all of `envs.ENV_IDS`); write the report to `out`.
+    algo: the algorithm to train everywhere (default: per env, hyperparams/check.yml)."""
     env_ids = list(env_ids) if env_ids else list(register_envs())
     if not env_ids:
         raise ValueError("No environments to check: the `envs` package registers none.")
@@ -205,11 +208,13 @@ def run_check(
         rows += check_env(env_id, algo, episodes, seed, out, timesteps, fresh, progress, log)
     total = time.perf_counter() - start
     table = markdown_table(rows)
-    notes = "\n".join(f"- {line}" for line in findings(rows, algo))
+    notes = "\n".join(f"- {line}" for line in findings(rows))
+    trained = algo.upper() if algo else "the algorithm of agents/hyperparams/check.yml"
+    yml = f"{algo}.yml" if algo else "<algo>.yml"
     report = (
         f"# Agents on every environment\n\n{episodes} episodes per agent (seeds {seed}.."
         f"{seed + episodes - 1}), success = the task's criterion at the last step; "
-        f"{algo.upper()} at the budget of agents/hyperparams/{algo}.yml"
+        f"{trained} at the budget of agents/hyperparams/{yml}"
         f"{'' if timesteps is None else f' overridden to {timesteps} steps'}. "
         f"Total wall time {total:.0f} s.\n\n{table}\n\n## Findings\n\n{notes}\n\n"
         f"![comparison](comparison.png)\n"
@@ -232,7 +237,11 @@ def build_parser() -> argparse.ArgumentParser:
         "comparison and write it with plots to --out.",
     )
     parser.add_argument("env_ids", nargs="*", help="environments (default: every Lagrange env)")
-    parser.add_argument("--algo", default="ppo", help=f"one of {', '.join(ALGORITHMS)}")
+    parser.add_argument(
+        "--algo",
+        help=f"train this ({', '.join(ALGORITHMS)}) on every env "
+        "(default: per env, agents/hyperparams/check.yml)",
+    )
     parser.add_argument("--episodes", type=positive_int, default=20)
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument(
@@ -249,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.algo not in ALGORITHMS:
+    if args.algo is not None and args.algo not in ALGORITHMS:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGORITHMS)}")
     try:
         env_ids = [check_env_id(e) for e in args.env_ids]

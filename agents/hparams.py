@@ -31,3 +31,12 @@ def load(algo: str, env_id: str) -> dict:
             f"Environments with {algo} hyperparameters: {', '.join(sorted(table))}."
         )
     return dict(table[env_id])
+
+
+def check_algo(env_id: str) -> str:
+    """The algorithm the main job trains on `env_id` (hyperparams/check.yml; else 'ppo')."""
+    table = yaml.safe_load((DIRECTORY / "check.yml").read_text(encoding="utf-8")) or {}
+    algo = table.get(env_id, "ppo")
+    if algo not in ALGOS:
+        raise ValueError(f"check.yml names unknown algorithm {algo!r} for {env_id!r}.")
+    return algo

@@ -119,7 +119,7 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
     norm = _normalize_kwargs(hp)
     if norm is not None:
         train_env = VecNormalize(train_env, **norm)
-        eval_env = VecNormalize(eval_env, training=False, norm_reward=False, **norm)
+        eval_env = VecNormalize(eval_env, **{**norm, "training": False, "norm_reward": False})
     return train_env, eval_env
 
 

@@ -115,3 +115,15 @@ def test_cli_trains_and_reports(tmp_path, capsys):
     assert code == 0
     out = capsys.readouterr().out
     assert "ppo on Lagrange/BeadOnRod-v0: 256 steps" in out and "model.zip" in out
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_off_policy_algorithms_train_and_resume_with_their_replay_buffer(algo, tmp_path):
+    kwargs = dict(algo=algo, eval_freq=300, eval_episodes=1, progress=False, run_dir=tmp_path)
+    train("Lagrange/CrankSlider-v0", timesteps=300, **kwargs)
+    steps, _ = latest_checkpoint(tmp_path / "checkpoints")
+    assert steps == 300
+    assert (tmp_path / "checkpoints" / f"rl_model_replay_buffer_{steps}_steps.pkl").exists()
+    result = train("Lagrange/CrankSlider-v0", timesteps=400, resume=True, **kwargs)
+    assert result.model.num_timesteps == 400
+    assert result.model.replay_buffer.size() == 400  # the buffer came back with the model
