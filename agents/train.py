@@ -221,6 +221,9 @@ def train(
     found = latest_checkpoint(ckpt_dir) if resume else None
     if resume and found is None:
         print(f"No checkpoint in {ckpt_dir}; starting a fresh run.", file=sys.stderr)
+    if found is None:  # a fresh run: an older run's checkpoints must not be resumed later
+        for old in ckpt_dir.glob(f"{CHECKPOINT_PREFIX}_*"):
+            old.unlink()
     write_text_atomic(
         run_dir / "config.yml",
         yaml.safe_dump(

@@ -10,7 +10,8 @@ from agents import train as train_mod
 from agents.policies import SB3Policy
 from agents.train import latest_checkpoint, main, train
 
-# PPO with one env collects rollouts of n_steps = 256 steps: 512 steps are two updates.
+# PPO with one env collects rollouts of n_steps = 512 steps (ppo.yml): 512 steps are one
+# update, 1024 two.
 SMALL = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)
 
 
@@ -62,8 +63,8 @@ def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_
 
 
 def test_resume_without_a_checkpoint_starts_fresh(tmp_path, capsys):
-    result = train("Lagrange/BeadOnRod-v0", timesteps=256, run_dir=tmp_path, resume=True, **SMALL)
-    assert result.timesteps == 256
+    result = train("Lagrange/BeadOnRod-v0", timesteps=512, run_dir=tmp_path, resume=True, **SMALL)
+    assert result.timesteps == 512
     assert "starting a fresh run" in capsys.readouterr().err
 
 
@@ -100,11 +101,11 @@ def test_cli_trains_and_reports(tmp_path, capsys):
         [
             "Lagrange/BeadOnRod-v0",
             "--timesteps",
-            "256",
+            "512",
             "--n-envs",
             "1",
             "--eval-freq",
-            "256",
+            "512",
             "--eval-episodes",
             "1",
             "--run-dir",
@@ -114,7 +115,7 @@ def test_cli_trains_and_reports(tmp_path, capsys):
     )
     assert code == 0
     out = capsys.readouterr().out
-    assert "ppo on Lagrange/BeadOnRod-v0: 256 steps" in out and "model.zip" in out
+    assert "ppo on Lagrange/BeadOnRod-v0: 512 steps" in out and "model.zip" in out
 
 
 @pytest.mark.parametrize("algo", ["sac", "td3"])
@@ -127,3 +128,10 @@ def test_off_policy_algorithms_train_and_resume_with_their_replay_buffer(algo, t
     result = train("Lagrange/CrankSlider-v0", timesteps=400, resume=True, **kwargs)
     assert result.model.num_timesteps == 400
     assert result.model.replay_buffer.size() == 400  # the buffer came back with the model
+
+
+def test_a_fresh_run_discards_an_older_runs_checkpoints(tmp_path):
+    train("Lagrange/CrankSlider-v0", timesteps=1024, run_dir=tmp_path, **SMALL)
+    train("Lagrange/CrankSlider-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+    names = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
+    assert names == ["rl_model_512_steps.zip", "rl_model_vecnormalize_512_steps.pkl"]
