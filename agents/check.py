@@ -165,8 +165,12 @@ def plot_comparison(rows: list[Row], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     env_ids = list(dict.fromkeys(r.env_id for r in rows))
-    fig, axes = plt.subplots(1, len(env_ids), figsize=(4.2 * len(env_ids), 3.6), squeeze=False)
-    for ax, env_id in zip(axes[0], env_ids):
+    cols = min(3, len(env_ids))
+    nrows = -(-len(env_ids) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.6 * cols, 3.4 * nrows), squeeze=False)
+    for ax in axes.flat[len(env_ids) :]:
+        ax.set_visible(False)
+    for ax, env_id in zip(axes.flat, env_ids):
         mine = [r for r in rows if r.env_id == env_id]
         y = np.arange(len(mine))
         means = [r.stats.mean_return for r in mine]

@@ -10,8 +10,8 @@ from agents import train as train_mod
 from agents.policies import SB3Policy
 from agents.train import latest_checkpoint, main, train
 
-# PPO with one env collects rollouts of n_steps = 512 steps (ppo.yml): 512 steps are one
-# update, 1024 two.
+# PPO with one env collects rollouts of n_steps = 256 or 512 steps (ppo.yml): 512 steps are
+# whole rollouts on every env.
 SMALL = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)
 
 
