@@ -34,8 +34,8 @@ def test_bead_leaving_the_rod_ends_zero_torque_episodes_early():
 
 def test_video_of_the_first_episode(tmp_path):
     pytest.importorskip("moviepy")
-    evaluate("Lagrange/CrankSlider-v0", "heuristic", episodes=1, video_dir=tmp_path)
-    videos = list(tmp_path.glob("*.mp4"))
+    evaluate("Lagrange/CrankSlider-v0", "heuristic", episodes=1, video_dir=tmp_path / "videos")
+    videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
 
 
