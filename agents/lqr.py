@@ -312,9 +312,13 @@ CONFIGS: dict[str, EnvConfig] = {
 
 Measured with `python -m agents.lqr ENV_ID --measure-region` (seed 0, 100 episodes): the
 largest multiple of each region with >= 99 % success is 12 (arm: any angles, rates up to
-6 rad/s), 1.75 (acrobot: 0.0175 rad, 0.035 rad/s; the linear closed loop swings the elbow
-~14x the shoulder error, so the basin stays small with 10x the torque: 58 % vs 43 % success
-from 0.05 rad), 1.6 (disk: 0.03 rad lean; its failures
+6 rad/s), 1.75 (acrobot: 0.0175 rad, 0.035 rad/s; other weights, from Q = I to R = 100 and
+Q on the slow unstable mode, measured no better: 85-93 % at 2x. The basin is a thin slab, not
+a small ball: no 3 N*m controller recovers once the slow unstable mode (2.7 1/s, the arm
+leaning as a whole) exceeds |w'B|/lam, which half the box crosses at 16x
+(tests/agents/test_lqr.py); along other directions it is wide: LQR recovers 99 % of
+random states with dx' P dx = 500, up to 0.37 rad and 2 rad/s, the swing-up's hand-over
+level), 1.6 (disk: 0.03 rad lean; its failures
 are at commanded speeds below the self-stable 0.99 m/s, where the 0.1 N*m steering torque
 is weak), 3.5 (bead) and 32 (crank: any angle).
 """
