@@ -21,7 +21,7 @@ RATE_TOLERANCE = 0.5
 
 @njit(cache=True)
 def evaluate(X, A, G, Y, c, obs, terms, flags):
-    """Observation, reward terms (angle, rate, effort), [terminated, success] per row."""
+    """Observation, reward terms (angle, precision, rate, effort), [terminated, success] per row."""
     for b in range(X.shape[0]):
         th1, th2, w1, w2 = X[b, 0], X[b, 1], X[b, 2], X[b, 3]
         obs[b, 0] = math.cos(th1)
@@ -35,9 +35,14 @@ def evaluate(X, A, G, Y, c, obs, terms, flags):
         obs[b, 8] = math.sin(G[b, 0])
         obs[b, 9] = math.sin(G[b, 1])
         e1, e2 = wrap(th1 - G[b, 0]), wrap(th2 - G[b, 1])
+        obs[b, 10] = math.cos(e1)
+        obs[b, 11] = math.cos(e2)
+        obs[b, 12] = math.sin(e1)
+        obs[b, 13] = math.sin(e2)
         terms[b, 0] = -(e1 * e1 + e2 * e2)
-        terms[b, 1] = -0.01 * (w1 * w1 + w2 * w2)
-        terms[b, 2] = -0.001 * (A[b, 0] * A[b, 0] + A[b, 1] * A[b, 1])
+        terms[b, 1] = -math.sqrt(e1 * e1 + e2 * e2)
+        terms[b, 2] = -0.01 * (w1 * w1 + w2 * w2)
+        terms[b, 3] = -0.001 * (A[b, 0] * A[b, 0] + A[b, 1] * A[b, 1])
         flags[b, 0] = False
         flags[b, 1] = (
             abs(e1) < ANGLE_TOLERANCE
@@ -75,19 +80,27 @@ class TwoLinkArmEnv(LagrangianEnv):
     m2 l2 g: 29.4 and 7.4 N*m for the default arm, so any configuration can be held.
 
     ## Observation Space
-    float32, shape (10,):
-    | Num | Observation                                   | Min   | Max  |
-    |-----|-----------------------------------------------|-------|------|
-    | 0-1 | cos theta1, cos theta2                        | -1    | 1    |
-    | 2-3 | sin theta1, sin theta2                        | -1    | 1    |
-    | 4-5 | theta1', theta2' (rad/s)                      | -8 pi | 8 pi |
-    | 6-7 | cos of the goal angles theta1*, theta2*       | -1    | 1    |
-    | 8-9 | sin of the goal angles theta1*, theta2*       | -1    | 1    |
+    float32, shape (14,):
+    | Num   | Observation                             | Min   | Max  |
+    |-------|-----------------------------------------|-------|------|
+    | 0-1   | cos theta1, cos theta2                  | -1    | 1    |
+    | 2-3   | sin theta1, sin theta2                  | -1    | 1    |
+    | 4-5   | theta1', theta2' (rad/s)                | -8 pi | 8 pi |
+    | 6-7   | cos of the goal angles theta1*, theta2* | -1    | 1    |
+    | 8-9   | sin of the goal angles theta1*, theta2* | -1    | 1    |
+    | 10-11 | cos of the goal errors e1, e2           | -1    | 1    |
+    | 12-13 | sin of the goal errors e1, e2           | -1    | 1    |
+
+    e = theta - theta*, wrapped to [-pi, pi). Columns 10-13 are functions of columns 0-3 and
+    6-9, given so that the policy need not learn angle differences through products of
+    cosines and sines.
 
     ## Rewards
-    Computed on the state after the step, the sum of three terms (in `info["reward_terms"]`):
-    `angle` = -(e1^2 + e2^2) with e the goal error wrapped to [-pi, pi); `rate` =
-    -0.01 (theta1'^2 + theta2'^2); `effort` = -0.001 |action|^2.
+    Computed on the state after the step, the sum of four terms (in `info["reward_terms"]`):
+    `angle` = -(e1^2 + e2^2) with e the goal error wrapped to [-pi, pi); `precision` =
+    -sqrt(e1^2 + e2^2), whose slope does not vanish at the goal as the quadratic's does,
+    so the last tenths of a radian still pay; `rate` = -0.01 (theta1'^2 + theta2'^2);
+    `effort` = -0.001 |action|^2.
 
     ## Starting State
     Angles uniform in [-pi, pi), rates uniform in [-0.1, 0.1] rad/s, the goal angles
@@ -116,7 +129,7 @@ class TwoLinkArmEnv(LagrangianEnv):
     default_control_period = 0.05
     default_substeps = 25
     goal_size = 2
-    reward_names = ("angle", "rate", "effort")
+    reward_names = ("angle", "precision", "rate", "effort")
     evaluate = staticmethod(evaluate)
 
     def _periodic(self):
@@ -128,7 +141,9 @@ class TwoLinkArmEnv(LagrangianEnv):
         return 1.5 * np.array([shoulder, p["m2"] * p["l2"] * p["g"]])
 
     def _observation_high(self) -> np.ndarray:
-        return np.array([1, 1, 1, 1, RATE_LIMIT, RATE_LIMIT, 1, 1, 1, 1], dtype=np.float64)
+        high = np.ones(14)
+        high[4:6] = RATE_LIMIT
+        return high
 
     def _state_limits(self) -> np.ndarray:
         return np.array([ANGLE_LIMIT, ANGLE_LIMIT, RATE_LIMIT, RATE_LIMIT])

@@ -36,8 +36,9 @@ def test_a_few_hundred_steps_train_end_to_end(env_id, tmp_path):
 
 def test_saved_model_gives_identical_actions(tmp_path):
     result = train("Lagrange/TwoLinkArm-v0", timesteps=512, run_dir=tmp_path, **SMALL)
-    obs = np.random.default_rng(0).uniform(-1, 1, (32, 10)).astype(np.float32)
     vecnorm = result.model.get_vec_normalize_env()
+    shape = (32,) + vecnorm.observation_space.shape
+    obs = np.random.default_rng(0).uniform(-1, 1, shape).astype(np.float32)
     expected, _ = result.model.predict(vecnorm.normalize_obs(obs), deterministic=True)
     loaded = SB3Policy.load(tmp_path)
     actions, _ = loaded.predict(obs, deterministic=True)
