@@ -13,15 +13,15 @@ action units, clipped to [-1, 1]. `LQRPolicy.predict` has stable-baselines3's si
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 import scipy.signal
+
+from .common import atomic_path
 
 # ---------------------------------------------------------------------------------------
 # Linearisation and reduction
@@ -544,16 +544,8 @@ def largest_region(
 
 def save_figure(fig, path: str) -> None:
     """fig.savefig to `path` atomically (temporary file in the same directory + replace)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    fmt = os.path.splitext(path)[1].lstrip(".") or "png"
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix="." + fmt)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format=fmt, dpi=120)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120)
 
 
 def describe(d: LQRDesign) -> str:
