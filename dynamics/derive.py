@@ -56,7 +56,7 @@ def _prescribed_substitutions(prescribed) -> dict:
 def _pfaffian(constraints, q) -> tuple[sp.Matrix, sp.Matrix]:
     rates = [qi.diff(t) for qi in q]
     B = sp.Matrix([[sp.diff(c, qd) for qd in rates] for c in constraints])
-    if B.free_symbols & set(rates) or any(d in B.atoms(sp.Derivative) for d in rates):
+    if any(d in B.atoms(sp.Derivative) for d in rates):
         raise ValueError("constraints must be linear in the coordinate rates (Pfaffian form).")
     b = sp.Matrix([c for c in constraints]) - B * sp.Matrix(rates)
     b = b.applyfunc(sp.expand).applyfunc(sp.simplify)
@@ -104,8 +104,9 @@ def derive(spec: ModelSpec) -> Derived:
     power = sum((me.msubs(forces[c], sub_p) * c.diff(t) for c in q), sp.S.Zero)
     outputs = {}
     for p, f in spec.prescribed.items():
+        # the drive supplies the reaction; given forces on p also work as p follows f(t)
         outputs[f"reaction_{p.name}"] = sp.simplify(lagrange[p])
-        power += lagrange[p] * f.diff(t)
+        power += (lagrange[p] + me.msubs(forces[p], sub_p)) * f.diff(t)
     for name, expr in spec.outputs.items():
         outputs[name] = sp.simplify(me.msubs(sp.sympify(expr), sub_p))
 

@@ -84,3 +84,40 @@ def test_driven_rod_reduces_to_the_prescribed_rod_at_constant_rate():
     acc = driven.accelerations(0.0, x, [tau])
     assert acc[1] == pytest.approx(0.0, abs=1e-12)
     assert acc[0] == pytest.approx(rod.accelerations(time, [r, rdot])[0], rel=1e-12)
+
+
+def test_power_counts_given_forces_on_a_prescribed_coordinate():
+    """A given torque on the spun rod changes the drive's reaction, not the energy balance:
+    d(T + V)/dt = (reaction + given torque) * Omega."""
+    import sympy.physics.mechanics as me
+
+    from dynamics.models.bead import _bead_energies
+    from dynamics.spec import ModelSpec, Param
+
+    r, phi = me.dynamicsymbols("r phi")
+    m, g, W = sp.symbols("m g Omega", positive=True)
+    c = sp.Symbol("c")
+    T, V = _bead_energies(r, phi, m, g)
+    spec = ModelSpec(
+        name="bead_with_rod_torque",
+        coordinates=(r,),
+        kinetic=T,
+        potential=V,
+        prescribed={phi: W * t},
+        forces={phi: c},
+        parameters={
+            m: Param(0.1, "kg"),
+            g: Param(9.81, "m/s^2"),
+            W: Param(2.0, "rad/s"),
+            c: Param(0.7, "N*m", positive=False),
+        },
+    )
+    system = dynamics.Model(spec).compile()
+    x, time = np.array([0.3, -0.2]), 0.4
+    f = system.state_derivative(time, x)
+    h = 1e-6
+    dE = (system.energy(x + h * f, t=time + h) - system.energy(x - h * f, t=time - h)) / (2 * h)
+    reaction = system.outputs(time, x)["reaction_phi"]
+    # central difference: O(h^2) truncation and ~1e-16 E / h round-off, both below 1e-8
+    assert system.power(time, x) == pytest.approx(dE, abs=1e-8)
+    assert system.power(time, x) == pytest.approx((reaction + 0.7) * 2.0, rel=1e-12)
