@@ -18,6 +18,8 @@ from types import ModuleType
 
 ENV_VAR = "LAGRANGE_GYM_CACHE"
 _loaded: dict[str, ModuleType] = {}
+_UMASK = os.umask(0)
+os.umask(_UMASK)
 
 
 def cache_dir() -> Path:
@@ -41,14 +43,18 @@ def _path(name: str, key: str) -> Path:
     return cache_dir() / f"{name}_{key[:20]}.py"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` through a temporary file in the same directory and a rename."""
+def write_atomic(path: Path, data: str | bytes) -> None:
+    """Write `data` (text as UTF-8, or bytes) to `path` through a temporary file in the same
+    directory and a rename, so readers never see a partial file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file normal permissions
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

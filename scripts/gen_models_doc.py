@@ -10,9 +10,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import io
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -25,19 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import dynamics  # noqa: E402
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file in the same directory."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+from dynamics.cache import write_atomic  # noqa: E402
 
 
 def _png(fig) -> bytes:

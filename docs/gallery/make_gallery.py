@@ -9,8 +9,7 @@ simple action (see `action`), so a reader sees the system, its goal and its moti
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
+import io
 from pathlib import Path
 
 import gymnasium as gym
@@ -18,6 +17,7 @@ import matplotlib.image
 import numpy as np
 
 import envs
+from dynamics.cache import write_atomic
 
 FRAMES = (0, 15, 40)
 
@@ -49,16 +49,10 @@ def strip(env_id: str, seed: int = 0) -> np.ndarray:
 
 
 def save_png(path: Path, image: np.ndarray) -> None:
-    """Write the PNG through a temporary file and a rename."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".png")
-    os.close(fd)
-    try:
-        matplotlib.image.imsave(tmp, image)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    """Write the PNG atomically (a temporary file and a rename)."""
+    buf = io.BytesIO()
+    matplotlib.image.imsave(buf, image, format="png")
+    write_atomic(path, buf.getvalue())
 
 
 def main(argv: list[str] | None = None) -> None:
