@@ -70,6 +70,21 @@ class ModelSpec:
         names = [str(s) for s in self.parameters] + [str(s) for s in self.inputs]
         if len(set(names)) != len(names):
             raise ValueError(f"{self.name}: parameter and input names must be unique: {names}.")
+        for label, value in self._expressions():
+            if isinstance(value, str):  # sympify would eval it: never pass text on
+                raise TypeError(
+                    f"{self.name}: {label} is text {value!r}; give a sympy expression "
+                    "(dynamics.parse.parse_expression reads text without running code)."
+                )
+
+    def _expressions(self):
+        yield "kinetic", self.kinetic
+        yield "potential", self.potential
+        yield from ((f"forces[{k}]", v) for k, v in self.forces.items())
+        yield from ((f"constraints[{i}]", v) for i, v in enumerate(self.constraints))
+        yield from ((f"prescribed[{k}]", v) for k, v in self.prescribed.items())
+        yield from ((f"outputs[{k!r}]", v) for k, v in self.outputs.items())
+        yield from ((f"conditions[{k!r}]", v) for k, v in self.conditions.items())
 
     def fingerprint(self) -> str:
         """A canonical text of everything that determines the derived equations."""

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import sympy as sp
 import sympy.physics.mechanics as me
 
+from ..parse import parse_expression
 from ..spec import ModelSpec, Param, generalized_forces, t
 
 _DEFAULT_CURVE = "k*x**2 + A*sin(Omega*t)"
@@ -27,10 +28,7 @@ def _curve(curve, curve_parameters: Mapping | None) -> tuple[sp.Expr, dict]:
         params = {}
         for name, value in (curve_parameters or {}).items():
             params[name] = value if isinstance(value, Param) else Param(float(value), "", "", False)
-    try:
-        f = sp.sympify(curve)
-    except (sp.SympifyError, TypeError) as exc:
-        raise ValueError(f"particle_on_curve: cannot read the curve {curve!r}: {exc}") from None
+    f = parse_expression(curve, "the curve of particle_on_curve")
     names = {str(s) for s in f.free_symbols}
     reserved = {"x", "t", "m", "g"} & set(params)
     if reserved:
@@ -56,9 +54,10 @@ def particle_on_curve(curve=None, curve_parameters: Mapping | None = None) -> Mo
     coordinate and y = f(x, t) enters T = m (x'^2 + y'^2) / 2 through y' = f_x x' + f_t.
     A curve that moves (f depends on t) is rheonomic: the energy then changes by the work of
     the curve on the particle; a fixed curve (scleronomic) gives eq. (7.15).
-    curve: sympy expression (or string) in the plain symbols x and t and any parameters
-    named in `curve_parameters` ({name: default value or Param}). Default: the parabola
-    y = k x^2 + A sin(Omega t), which heaves up and down.
+    curve: sympy expression (or text, read by `dynamics.parse` without running code) in the
+    plain symbols x and t and any parameters named in `curve_parameters` ({name: default
+    value or Param}). Default: the parabola y = k x^2 + A sin(Omega t), which heaves up and
+    down.
     Inputs Fx, Fy: Cartesian components of a further given force, N; with gravity they
     give, by virtual work, Q_x = Fx + (Fy - m g) f_x (the x component alone only when the
     force has no y component). Outputs: position_y = f(x, t) and normal_force, the

@@ -13,6 +13,7 @@ from __future__ import annotations
 import sympy as sp
 import sympy.physics.mechanics as me
 
+from ..parse import parse_expression
 from ..spec import ModelSpec, Param, generalized_forces, t
 
 _m, _g = sp.symbols("m g", positive=True)
@@ -117,8 +118,9 @@ def frobenius_obstruction(a, b, c, variables) -> sp.Expr:
 
 
 def _position_expression(value, allowed: dict, what: str) -> sp.Expr:
-    """`value` (sympy expression or string) with the plain symbols of `allowed` replaced."""
-    expr = sp.sympify(value)
+    """`value` (sympy expression or text, read without running code) with the plain symbols
+    of `allowed` replaced."""
+    expr = parse_expression(value, what)
     unknown = {str(s) for s in expr.free_symbols} - set(allowed)
     if unknown:
         raise ValueError(
@@ -132,7 +134,8 @@ def particle_nonholonomic(a=None, b=None, c=None) -> ModelSpec:
 
     Coordinates x, y, z (all three: a nonholonomic constraint removes a freedom of motion but
     no coordinate); one multiplier lambda1, entering as m x'' - F_x + lambda1 a = 0 etc.
-    a, b, c: sympy expressions (or strings) in the plain symbols x, y, z and the length L.
+    a, b, c: sympy expressions (or text, read without running code) in the plain symbols
+    x, y, z and the length L.
     The default, a = -y / L, b = 0, c = 1 (dz = y dx / L), is genuinely nonholonomic: with
     A = (a, b, c), A . curl A = 1 / L is nowhere zero, so by Frobenius' theorem no family of
     surfaces f(x, y, z) = const carries the motion; taking the particle around a closed

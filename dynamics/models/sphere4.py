@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import sympy as sp
 import sympy.physics.mechanics as me
 
+from ..parse import parse_expression
 from ..spec import ModelSpec, Param, t
 
 _DEFAULT_POTENTIAL = "k*R**2*cos(theta)**2/2"
@@ -37,7 +38,7 @@ def particle_on_4_sphere(potential=None, potential_parameters: Mapping | None = 
     w^2 + x^2 = const is a function V(theta) alone, and varphi, psi are cyclic: their
     momenta p_varphi = m R^2 cos^2(theta) varphi' and p_psi = m R^2 sin^2(theta) psi' are
     conserved (outputs p_varphi, p_psi; also the position w, x, y, z).
-    potential: sympy expression (or string) in theta, R and the names of
+    potential: sympy expression (or text, read without running code) in theta, R and the names of
     `potential_parameters` ({name: default or Param}). Default V = k R^2 cos^2(theta) / 2,
     i.e. k (w^2 + x^2) / 2, a spring pulling the particle towards the plane w = x = 0.
     """
@@ -55,10 +56,7 @@ def particle_on_4_sphere(potential=None, potential_parameters: Mapping | None = 
     clash = {"theta", "R", "m"} & set(params)
     if clash:
         raise ValueError(f"particle_on_4_sphere: {sorted(clash)} are not parameter names.")
-    try:
-        V = sp.sympify(potential)
-    except (sp.SympifyError, TypeError) as exc:
-        raise ValueError(f"particle_on_4_sphere: cannot read {potential!r}: {exc}") from None
+    V = parse_expression(potential, "the potential of particle_on_4_sphere")
     unknown = {str(s) for s in V.free_symbols} - {"theta", "R"} - set(params)
     if unknown:
         raise ValueError(

@@ -114,3 +114,40 @@ def test_curve_errors_name_the_problem():
         _ = dynamics.get_model("particle_on_curve", curve="a*x**2").spec
     with pytest.raises(ValueError, match="does not depend on x"):
         _ = dynamics.get_model("particle_on_curve", curve="sin(t)").spec
+
+
+def test_a_crafted_curve_runs_no_code(tmp_path):
+    """Options given as text are parsed, never evaluated (issue 11)."""
+    marker = tmp_path / "pwned"
+    crafted = [
+        f"__import__('os').system('touch {marker}')",
+        f"x + open('{marker}', 'w').write('x')",
+        "x.__class__.__mro__",
+        "[c for c in ().__class__.__base__.__subclasses__()]",
+        "lambda: 0",
+        "x**2 if x else x",
+        "9**9**9 * x",
+    ]
+    for curve in crafted:
+        with pytest.raises(ValueError, match="cannot read the curve of particle_on_curve"):
+            dynamics.get_model("particle_on_curve", curve=curve).spec
+    assert not marker.exists()
+    with pytest.raises(ValueError, match="cannot read coefficient a"):
+        dynamics.get_model("particle_nonholonomic", a="getattr(x, 'y')").spec
+    with pytest.raises(ValueError, match="cannot read the potential of particle_on_4_sphere"):
+        dynamics.get_model("particle_on_4_sphere", potential="eval('1')").spec
+
+
+def test_text_and_sympy_curves_give_the_same_model():
+    x = sp.Symbol("x")
+    as_text = dynamics.get_model("particle_on_curve", curve="cosh(x)/2 + x^2 - pi*E")
+    as_expr = dynamics.get_model("particle_on_curve", curve=sp.cosh(x) / 2 + x**2 - sp.pi * sp.E)
+    assert as_text.spec.potential == as_expr.spec.potential
+    assert sp.Symbol("x") not in as_text.spec.potential.free_symbols  # x became x(t)
+
+
+def test_model_spec_refuses_text_expressions():
+    x = me.dynamicsymbols("x")
+    m = sp.Symbol("m", positive=True)
+    with pytest.raises(TypeError, match="potential is text"):
+        ModelSpec("p", (x,), m * x.diff() ** 2 / 2, "__import__('os')", {m: Param(1.0, "kg")})
