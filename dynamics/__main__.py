@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.clear:
             import shutil
 
-            for f in files:
+            for f in files + sorted(root.glob(".*.lock")):
                 f.unlink(missing_ok=True)
             shutil.rmtree(root / "__pycache__", ignore_errors=True)
             print(f"removed {len(files)} compiled models from {root}")

@@ -79,7 +79,7 @@ def _plain_symbols(d: Derived):
 def _function(name: str, args: str, targets: list[str], exprs: list, header: list[str]) -> str:
     """One njit kernel: unpack arguments, cse, assign each target."""
     printer = _Printer({"fully_qualified_modules": True})
-    lines = ["", "", "@njit(cache=True)", f"def {name}({args}):"]
+    lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def {name}({args}):"]
     lines += ["    " + h for h in header]
     if exprs:
         repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c"), optimizations="basic")

@@ -3,20 +3,47 @@
 They call the generated `kkt`, `kkt_matrix`, `residual`, `energy_terms`, `power_out`,
 `outputs` and read the constants N_Q, N_C, K, N_OUT of that module, so this file is a
 template and is never imported by itself. Everything is batched over a leading axis and
-allocates its work arrays once per call.
+allocates its work arrays once per call. No kernel raises on bad values (division by zero
+follows numpy's rules): a row whose result is undefined comes back NaN, for the caller to see.
 """
 # ruff: noqa: F821
 # --- template starts here ---
 
 
-@njit(cache=True)
+PIVOT_TOL = 64 * 2.220446049250313e-16
+"""Smallest pivot of the row-scaled matrix: below it the matrix is singular to working
+precision (condition number about 1e14 or more, fewer than two correct digits)."""
+
+
+@njit(cache=True, error_model="numpy")
+def fail(r):
+    for i in range(r.shape[0]):
+        r[i] = math.nan
+
+
+@njit(cache=True, error_model="numpy")
 def solve(A, r):
-    """Solve A z = r in place (r <- z) by Gaussian elimination with partial pivoting.
+    """Solve A z = r in place (r <- z): rows scaled to a largest entry of 1, then Gaussian
+    elimination with partial pivoting.
 
     A is the small (K x K) mass/constraint matrix; LAPACK's call overhead is several times
-    the arithmetic at this size (see benchmarks/dynamics.py).
+    the arithmetic at this size (see benchmarks/dynamics.py). A singular matrix (a pivot
+    below PIVOT_TOL) or a non-finite entry leaves NaN in r instead of raising.
     """
     k = r.shape[0]
+    for i in range(k):
+        s = 0.0
+        for j in range(k):
+            a = abs(A[i, j])
+            if not a <= s:  # NaN propagates
+                s = a
+        if not (s > 0.0 and s < math.inf):
+            fail(r)
+            return
+        inv = 1.0 / s
+        for j in range(k):
+            A[i, j] *= inv
+        r[i] *= inv
     for c in range(k):
         piv = c
         big = abs(A[c, c])
@@ -24,6 +51,9 @@ def solve(A, r):
             if abs(A[i, c]) > big:
                 big = abs(A[i, c])
                 piv = i
+        if not big > PIVOT_TOL:
+            fail(r)
+            return
         if piv != c:
             for j in range(k):
                 tmp = A[c, j]
@@ -46,14 +76,14 @@ def solve(A, r):
         r[c] = s / A[c, c]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def accelerations(t, x, u, p, A, z):
     """z <- [qddot, lambda] at (t, x, u)."""
     kkt(t, x, u, p, A, z)
     solve(A, z)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rhs(t, x, u, p, A, z, dx):
     accelerations(t, x, u, p, A, z)
     for i in range(N_Q):
@@ -61,7 +91,7 @@ def rhs(t, x, u, p, A, z, dx):
         dx[N_Q + i] = z[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def project(t, x, p, A, z):
     """Remove the constraint violation B qdot + b from the rates, orthogonally in the
     kinetic-energy metric: qdot <- qdot + dv, [[M, B^T], [B, 0]] [dv; mu] = [0; -(B qdot + b)]."""
@@ -78,7 +108,7 @@ def project(t, x, p, A, z):
         x[N_Q + i] += z[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def derivative_batch(T, X, U, p, out):
     A = np.empty((K, K))
     z = np.empty(K)
@@ -86,14 +116,14 @@ def derivative_batch(T, X, U, p, out):
         rhs(T[b], X[b], U[b], p, A, z, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def accelerations_batch(T, X, U, p, out):
     A = np.empty((K, K))
     for b in range(X.shape[0]):
         accelerations(T[b], X[b], U[b], p, A, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rk4_batch(T, X, U, p, h, substeps, out):
     """Classical RK4, `substeps` steps of size h per row, inputs held (zero-order hold).
     Constrained models are projected onto their velocity constraints after every step."""
@@ -130,7 +160,7 @@ def rk4_batch(T, X, U, p, h, substeps, out):
             out[b, i] = x[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def project_batch(T, X, p, out):
     A = np.empty((K, K))
     z = np.empty(K)
@@ -140,19 +170,19 @@ def project_batch(T, X, p, out):
         project(T[b], out[b], p, A, z)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def energy_batch(T, X, p, out):
     for b in range(X.shape[0]):
         energy_terms(T[b], X[b], p, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def residual_batch(T, X, p, out):
     for b in range(X.shape[0]):
         residual(T[b], X[b], p, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def power_batch(T, X, U, p, out):
     A = np.empty((K, K))
     z = np.empty(K)
@@ -161,7 +191,7 @@ def power_batch(T, X, U, p, out):
         power_out(T[b], X[b], U[b], p, z, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def outputs_batch(T, X, U, p, out):
     A = np.empty((K, K))
     z = np.empty(K)
@@ -170,7 +200,7 @@ def outputs_batch(T, X, U, p, out):
         outputs(T[b], X[b], U[b], p, z, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def linear_terms(t, x, u, p, A, z, Jx, Ju):
     """Fill z = [qddot, lambda], the matrix A = kkt(x), and Jx, Ju = dR/dx, dR/du of the
     residual R(x, u, z) = kkt(x) z - rhs(x, u), generated symbolically: then
@@ -180,7 +210,7 @@ def linear_terms(t, x, u, p, A, z, Jx, Ju):
     kkt_matrix(t, x, p, A)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def all_finite(T, X, U):
     """True if no entry of T, X, U is NaN or inf (one pass, no temporaries)."""
     for b in range(X.shape[0]):
@@ -193,3 +223,27 @@ def all_finite(T, X, U):
             if not math.isfinite(U[b, j]):
                 return False
     return True
+
+
+@njit(cache=True, error_model="numpy")
+def first_nonfinite(Y):
+    """Index of the first row of Y holding NaN or inf, or -1."""
+    for b in range(Y.shape[0]):
+        for i in range(Y.shape[1]):
+            if not math.isfinite(Y[b, i]):
+                return b
+    return -1
+
+
+@njit(cache=True, error_model="numpy")
+def singular_at(t, x, p):
+    """True if the mass/constraint matrix at (t, x) is finite but singular for `solve`."""
+    A = np.empty((K, K))
+    z = np.ones(K)
+    kkt_matrix(t, x, p, A)
+    for i in range(K):
+        for j in range(K):
+            if not math.isfinite(A[i, j]):
+                return False
+    solve(A, z)
+    return not math.isfinite(z[0])

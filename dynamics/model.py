@@ -65,6 +65,11 @@ def list_models() -> list[str]:
 
 def get_model(name: str, **options) -> Model:
     """The registered model `name`; `options` go to its factory (e.g. a curve)."""
+    if not isinstance(name, str):
+        raise TypeError(
+            f"get_model: name must be a model name (str) such as 'two_link_arm', got {name!r}. "
+            f"Known: {', '.join(list_models())}."
+        )
     if name not in _REGISTRY:
         close = difflib.get_close_matches(name, list(_REGISTRY), n=3)
         hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
@@ -165,9 +170,10 @@ class Model:
         """A `System` with these parameter values (defaults otherwise), from the cache
         when possible; deriving and generating code only when it is not there."""
         key = self.key
-        module = _cache.load(self.name, key)
-        if module is None:
+
+        def build() -> str:
             from .codegen import generate
 
-            module = _cache.load(self.name, key, generate(self.derived, key))
-        return System(module, params)
+            return generate(self.derived, key)
+
+        return System(_cache.load_or_build(self.name, key, build), params)

@@ -3,6 +3,12 @@
 State x = [q, qdot] (length 2n), inputs u (length n_u). Every method accepts a leading batch
 axis (shape (..., 2n) and (..., n_u)) and returns the same leading shape; time may be a scalar
 or broadcast against the batch.
+
+Every argument is checked once, by the rules of `checks` (real, finite, in range), and every
+result is finite: when finite arguments give a NaN or inf (an overflow, or a mass/constraint
+matrix that is singular at that state), the method raises ValueError naming itself, the row,
+and the argument of largest magnitude or the singular matrix. Only the `*_unchecked` methods
+skip this, for the environments' hot path.
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ from types import ModuleType
 
 import numpy as np
 
-from . import cache
+from . import cache, checks
 
 
 def check_parameters(model_name: str, names, defaults, positive, given: dict) -> np.ndarray:
@@ -21,20 +27,12 @@ def check_parameters(model_name: str, names, defaults, positive, given: dict) ->
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
         if key not in values:
-            close = difflib.get_close_matches(key, names, n=1)
+            close = difflib.get_close_matches(str(key), names, n=1)
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ValueError(
                 f"Unknown parameter {key!r} for {model_name}.{hint} Known: {', '.join(names)}."
             )
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise TypeError(
-                f"Parameter {key!r} of {model_name} must be a number, got {value!r}."
-            ) from None
-        if not np.isfinite(v):
-            raise ValueError(f"Parameter {key!r} of {model_name} must be finite, got {v}.")
-        values[key] = v
+        values[key] = checks.parameter(model_name, key, value)
     for key, pos in zip(names, positive):
         if pos and not values[key] > 0:
             raise ValueError(
@@ -75,9 +73,12 @@ class System:
         return (_rebuild, (self.name, self._m.KEY, self._source_text(), self.parameters))
 
     def _source_text(self) -> str:
+        """The generated module's body (without the cache's stamp line)."""
         if self._source is None:
             with open(self._m.__file__, encoding="utf-8") as fh:
-                self._source = fh.read()
+                self._source = cache.body_of(fh.read(), self._m.KEY)
+            if self._source is None:
+                raise RuntimeError(f"{self._m.__file__} changed on disk since it was loaded.")
         return self._source
 
     def with_parameters(self, **params) -> System:
@@ -86,7 +87,7 @@ class System:
 
     # ---- argument checking -------------------------------------------------------------
     def _state(self, x) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
+        x = checks.real_array(self.name, "state", x)
         if x.ndim == 0 or x.shape[-1] != self.state_size:
             raise ValueError(
                 f"{self.name}: expected state of shape (..., {self.state_size}) "
@@ -97,7 +98,7 @@ class System:
     def _input(self, u) -> np.ndarray:
         if u is None:
             return self._no_input
-        u = np.asarray(u, dtype=np.float64)
+        u = checks.real_array(self.name, "input", u)
         if u.ndim == 0 or u.shape[-1] != self.n_u:
             raise ValueError(
                 f"{self.name}: expected input of shape (..., {self.n_u}) for "
@@ -110,7 +111,7 @@ class System:
         for every caller), check they are finite; return them and the leading shape."""
         x = self._state(x)
         u = self._input(u) if need_u else self._no_input
-        t = np.asarray(t, dtype=np.float64)
+        t = checks.real_array(self.name, "time", t)
         lead = x.shape[:-1]
         if u.shape[:-1] != lead or t.ndim:
             lead = np.broadcast_shapes(lead, u.shape[:-1], t.shape)
@@ -128,6 +129,30 @@ class System:
                     raise ValueError(f"{self.name}: {label} contains NaN or inf.")
         return T, X, (U if need_u else None), lead
 
+    def _finite(self, method: str, out: np.ndarray, T, X, U=None, dt=None) -> np.ndarray:
+        """`out` (rows), or ValueError if finite arguments gave a non-finite row."""
+        row = self._m.first_nonfinite(out.reshape(out.shape[0], -1)) if out.size else -1
+        if row < 0:
+            return out
+        where = f"{self.name}.{method}: finite arguments gave a non-finite result at row {row}"
+        if self._m.singular_at(T[row], X[row], self._p):
+            raise ValueError(
+                f"{where}: the mass/constraint matrix is singular at that state "
+                f"(x = {X[row].tolist()}, t = {T[row]}); the coordinates or constraints "
+                "degenerate there and the accelerations are undefined."
+            )
+        sizes = {"state": np.abs(X[row]).max(), "time": abs(T[row])}
+        if U is not None and U.shape[1]:
+            sizes["input"] = np.abs(U[row]).max()
+        if dt is not None:
+            sizes["dt"] = dt
+        culprit = max(sizes, key=sizes.get)
+        hint = " (or the motion diverges within dt: reduce dt)" if dt is not None else ""
+        raise ValueError(
+            f"{where}: {culprit} is out of range (largest magnitude {sizes[culprit]:.3g}); "
+            f"the model's arithmetic overflows for values this large{hint}."
+        )
+
     # ---- dynamics ----------------------------------------------------------------------
     def state_derivative(self, t, x, u=None) -> np.ndarray:
         """dx/dt = [qdot, qddot] at time t, state x, inputs u (zeros if None)."""
@@ -137,14 +162,17 @@ class System:
         else:
             out = np.empty_like(X)
             self._m.derivative_batch(T, X, U, self._p, out)
-        return out.reshape(lead + (self.state_size,))
+        return self._finite("state_derivative", out, T, X, U).reshape(lead + (self.state_size,))
 
     def _derivative_columns(self, T, X, U) -> np.ndarray:
         """Large batches: numpy over columns, whose SIMD sin/cos beat scalar libm calls."""
         n = self.n_q
         k = n + self.n_c
-        A, r = self._m.kkt_columns(T, np.ascontiguousarray(X.T), np.ascontiguousarray(U.T), self._p)
-        z = _eliminate([list(A[i * k : (i + 1) * k]) for i in range(k)], list(r))
+        with np.errstate(all="ignore"):  # a singular row gives NaN, reported by _finite
+            A, r = self._m.kkt_columns(
+                T, np.ascontiguousarray(X.T), np.ascontiguousarray(U.T), self._p
+            )
+            z = _eliminate([list(A[i * k : (i + 1) * k]) for i in range(k)], list(r))
         out = np.empty_like(X)
         out[:, :n] = X[:, n:]
         for i in range(n):
@@ -163,25 +191,28 @@ class System:
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], self.n_q + self.n_c))
         self._m.accelerations_batch(T, X, U, self._p, out)
-        return out.reshape(lead + (self.n_q + self.n_c,))
+        return self._finite("accelerations", out, T, X, U).reshape(lead + (self.n_q + self.n_c,))
 
     def step(self, x, u=None, dt: float = 0.01, substeps: int = 1, t=0.0) -> np.ndarray:
         """Advance by dt with `substeps` RK4 steps, u held constant (zero-order hold).
 
+        dt: positive finite number, s; substeps: integer 1..checks.MAX_SUBSTEPS.
         Nonholonomic models are projected back onto their velocity constraints after each
         substep. Returns the new state (same shape as x, broadcast with u)."""
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number, got {dt}.")
-        if int(substeps) != substeps or substeps < 1:
-            raise ValueError(f"substeps must be a positive integer, got {substeps}.")
+        dt = checks.time_step(self.name, dt)
+        substeps = checks.substeps(self.name, substeps)
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
-        self._m.rk4_batch(T, X, U, self._p, float(dt) / substeps, int(substeps), out)
+        self._m.rk4_batch(T, X, U, self._p, dt / substeps, substeps, out)
+        out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 
     def step_unchecked(self, T, X, U, dt: float, substeps: int, out: np.ndarray) -> None:
         """`step` on contiguous float64 rows T (N,), X (N, 2n), U (N, n_u) into `out`,
-        without argument checks: the environments' hot path."""
+        without argument checks: the environments' hot path.
+
+        Never raises for a bad row: where the integration fails (a singular mass/constraint
+        matrix, an overflow) that row of `out` holds NaN or inf; the caller must check."""
         self._m.rk4_batch(T, X, U, self._p, dt / substeps, substeps, out)
 
     def energy_terms_unchecked(self, T, X, out: np.ndarray) -> None:
@@ -202,7 +233,7 @@ class System:
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty_like(X)
         self._m.project_batch(T, X, self._p, out)
-        return out.reshape(lead + (self.state_size,))
+        return self._finite("project", out, T, X).reshape(lead + (self.state_size,))
 
     # ---- diagnostics -------------------------------------------------------------------
     def energy_terms(self, x, t=0.0) -> np.ndarray:
@@ -210,7 +241,7 @@ class System:
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], 2))
         self._m.energy_batch(T, X, self._p, out)
-        return out.reshape(lead + (2,))
+        return self._finite("energy", out, T, X).reshape(lead + (2,))
 
     def energy(self, x, t=0.0) -> np.ndarray:
         """Total mechanical energy T + V, J (shape x.shape[:-1])."""
@@ -221,7 +252,7 @@ class System:
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], self.n_c))
         self._m.residual_batch(T, X, self._p, out)
-        return out.reshape(lead + (self.n_c,))
+        return self._finite("constraint_residual", out, T, X).reshape(lead + (self.n_c,))
 
     def power(self, t, x, u=None) -> np.ndarray:
         """Power of the given non-conservative forces and of prescribed-motion drives, W.
@@ -229,32 +260,35 @@ class System:
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], 1))
         self._m.power_batch(T, X, U, self._p, out)
-        return out.reshape(lead)
+        return self._finite("power", out, T, X, U).reshape(lead)
 
     def outputs(self, t, x, u=None) -> dict[str, np.ndarray]:
         """Named derived quantities (e.g. the torque that keeps a prescribed rotation)."""
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], len(self.output_names)))
         self._m.outputs_batch(T, X, U, self._p, out)
+        out = self._finite("outputs", out, T, X, U)
         return {k: out[:, i].reshape(lead) for i, k in enumerate(self.output_names)}
 
     def linearize(self, x0, u0=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) with d(dx)/dt = A dx + B du about (x0, u0), from symbolic Jacobians."""
-        x0 = self._state(x0)
-        u0 = self._input(u0)
-        if not (np.isfinite(x0).all() and np.isfinite(u0).all()):
-            raise ValueError(f"{self.name}: operating point contains NaN or inf.")
-        if x0.ndim != 1 or u0.ndim != 1:
-            raise ValueError("linearize takes one state and one input (no batch axis).")
+        T, X, U, lead = self._batch(t, x0, u0)
+        if lead != ():
+            raise ValueError(
+                f"{self.name}: linearize takes one state, one input and one time (no batch "
+                f"axis); got leading shape {lead}."
+            )
         n, k = self.n_q, self.n_q + self.n_c
         Am = np.empty((k, k))
         z = np.empty(k)
         Jx = np.empty((k, 2 * n))
         Ju = np.empty((k, self.n_u))
-        self._m.linear_terms(
-            float(t), np.ascontiguousarray(x0), np.ascontiguousarray(u0), self._p, Am, z, Jx, Ju
-        )
-        dz = -np.linalg.solve(Am, np.hstack([Jx, Ju]))
+        self._m.linear_terms(T[0], X[0], U[0], self._p, Am, z, Jx, Ju)
+        terms = np.concatenate([z, Jx.ravel(), Ju.ravel()])[None, :]
+        self._finite("linearize", terms, T, X, U)
+        with np.errstate(all="ignore"):
+            dz = -np.linalg.solve(Am, np.hstack([Jx, Ju]))
+        self._finite("linearize", dz.reshape(1, -1), T, X, U)
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
         A[n:, :] = dz[:n, : 2 * n]

@@ -1,8 +1,13 @@
 """Compiled models are cached on disk, pickle without re-deriving, and survive concurrency."""
 
+import contextlib
 import pickle
+import shutil
+import stat
 import subprocess
 import sys
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -57,10 +62,17 @@ def test_pickle_rebuilds_from_its_own_source_in_a_fresh_cache(tmp_path):
     assert float(out.stdout) == float(system.energy(np.array([0.3, 0.2, 0.0, 0.0])))
 
 
-def test_concurrent_cold_compiles_agree(tmp_path):
-    """Several processes compiling the same model into an empty cache at once."""
+@pytest.mark.slow  # four cold derivations and numba compilations: ~10 s
+def test_concurrent_cold_compiles_derive_once_and_agree(tmp_path):
+    """Four processes compiling the same model into an empty cache at once: one derives,
+    the others wait on its lock and load its file."""
     code = (
-        "import dynamics, numpy as np\n"
+        "import dynamics, dynamics.derive, numpy as np\n"
+        "derive = dynamics.derive.derive\n"
+        "def counted(spec):\n"
+        "    print('derived')\n"
+        "    return derive(spec)\n"
+        "dynamics.derive.derive = counted\n"
         "s = dynamics.get_model('bead_on_rotating_rod').compile()\n"
         "print(repr(float(s.state_derivative(0.3, np.array([0.1, 0.2]))[1])))\n"
     )
@@ -69,11 +81,13 @@ def test_concurrent_cold_compiles_agree(tmp_path):
         subprocess.Popen(
             [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env
         )
-        for _ in range(2)
+        for _ in range(4)
     ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1].decode()[-500:] for o in outs]
-    assert len({o[0] for o in outs}) == 1
+    lines = [o[0].decode().split() for o in outs]
+    assert sum(line.count("derived") for line in lines) == 1
+    assert len({line[-1] for line in lines}) == 1
     assert not list(tmp_path.glob(".*.tmp"))  # no temporary files left behind
 
 
@@ -89,3 +103,98 @@ def test_write_atomic_leaves_old_file_on_failure(tmp_path):
         cache.write_atomic(target, Boom())
     assert target.read_text() == "old"
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+# ---- a cache that protects and repairs itself (issue 11) ---------------------------------
+
+
+@pytest.fixture
+def copied_cache(tmp_path, monkeypatch):
+    """A private cache holding a copy of the warm bead model (file and numba files), and the
+    path of its module; nothing of it loaded in this process yet."""
+    warm = dynamics.get_model("bead_on_rotating_rod").compile()
+    _derivative(warm)  # numba writes its cache files at the first call
+    source = Path(warm._m.__file__)
+    root = tmp_path / "cache"
+    (root / "__pycache__").mkdir(parents=True)
+    shutil.copy2(source, root / source.name)
+    for f in (source.parent / "__pycache__").glob(f"{source.stem}.*"):
+        shutil.copy2(f, root / "__pycache__" / f.name)
+    monkeypatch.setenv(cache.ENV_VAR, str(root))
+    monkeypatch.setattr(cache, "_loaded", {})
+    return root / source.name
+
+
+def _derivative(system):
+    return float(system.state_derivative(0.3, np.array([0.1, 0.2]))[1])
+
+
+def test_new_cache_directory_is_private(tmp_path, monkeypatch):
+    monkeypatch.setenv(cache.ENV_VAR, str(tmp_path / "new"))
+    assert stat.S_IMODE(cache.cache_dir().stat().st_mode) == 0o700
+
+
+def test_a_tampered_module_is_not_run_and_is_rebuilt(copied_cache, tmp_path):
+    marker = tmp_path / "ran"
+    text = copied_cache.read_text()
+    copied_cache.write_text(text + f"\nopen({str(marker)!r}, 'w').close()\n")
+    system = dynamics.get_model("bead_on_rotating_rod").compile()
+    assert not marker.exists()
+    assert copied_cache.read_text() == text  # rebuilt from the derivation
+    assert _derivative(system) == pytest.approx(0.2**2 * 0 + 4.0 * 0.1 - 9.81 * np.sin(0.6))
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "binary"])
+def test_a_damaged_module_is_rebuilt(copied_cache, damage):
+    text = copied_cache.read_bytes()
+    copied_cache.write_bytes(
+        {"truncate": text[: len(text) // 2], "garbage": b"def (:\n", "binary": b"\xff\xfe\x00"}[
+            damage
+        ]
+    )
+    system = dynamics.get_model("bead_on_rotating_rod").compile()
+    assert copied_cache.read_bytes() == text
+    assert np.isfinite(_derivative(system))
+
+
+def test_corrupt_numba_cache_files_are_rebuilt(copied_cache):
+    numba_files = list((copied_cache.parent / "__pycache__").glob("*.nb[ic]"))
+    assert numba_files
+    for i, f in enumerate(numba_files):
+        f.write_bytes(f.read_bytes()[: 10 * (i % 2)])  # truncated or empty
+    before = copied_cache.read_bytes()
+    system = dynamics.get_model("bead_on_rotating_rod").compile()
+    assert np.isfinite(_derivative(system))
+    assert copied_cache.read_bytes() == before  # the module itself was sound: kept
+
+
+def test_valid_numba_cache_files_are_kept(copied_cache):
+    numba_files = sorted((copied_cache.parent / "__pycache__").glob("*.nb[ic]"))
+    stamps = [f.stat().st_mtime_ns for f in numba_files]
+    _derivative(dynamics.get_model("bead_on_rotating_rod").compile())
+    assert [f.stat().st_mtime_ns for f in numba_files] == stamps
+
+
+def test_read_only_cache_compiles_cold_with_one_warning(tmp_path, monkeypatch):
+    # a read-only directory, as seen by a non-root user (root ignores the permission bits)
+    root = tmp_path / "ro"
+    root.mkdir()
+    monkeypatch.setenv(cache.ENV_VAR, str(root))
+    monkeypatch.setattr(cache, "_loaded", {})
+    monkeypatch.setattr(cache, "_fallback", [])
+    real_write = cache.write_atomic
+
+    def read_only(path, data):
+        if Path(path).parent == root:
+            raise PermissionError(13, "Permission denied", str(path))
+        real_write(path, data)
+
+    monkeypatch.setattr(cache, "write_atomic", read_only)
+    monkeypatch.setattr(cache, "_lock", lambda name, key: contextlib.nullcontext())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        a = dynamics.get_model("bead_on_rotating_rod").compile()
+        b = dynamics.get_model("particle_cartesian").compile()
+    assert len([w for w in caught if "not writable" in str(w.message)]) == 1
+    assert not list(root.iterdir())
+    assert np.isfinite(_derivative(a)) and b.n_q == 3
