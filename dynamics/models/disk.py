@@ -14,8 +14,10 @@ def rolling_disk() -> ModelSpec:
     """A thin uniform disk rolling on the plane y = 0 (Figs. 7-7, 7-8).
 
     Coordinates, in the order of eq. (7.35): x, z, the contact point on the floor; theta,
-    the tilt of the disk's plane from the floor (pi/2 upright, < pi/2 leaning towards
-    +j' x k'); phi, the heading: rotation of the rolling direction i' about the vertical j
+    the tilt of the disk's plane from the floor (pi/2 upright; theta < pi/2 leans the disk
+    towards the horizontal j x i' = cos(phi) i - sin(phi) k, where its centre lies
+    r cos(theta) from the contact point as in Fig. 7-8; that is -k' of the upright disk);
+    phi, the heading: rotation of the rolling direction i' about the vertical j
     (i' = sin(phi) i + cos(phi) k); psi, the spin about the disk's axis k'. With these
     Euler angles omega = theta' i' + phi' j + psi' k' (eq. 7.31).
     The rolling constraints are derived here from zero velocity of the material contact

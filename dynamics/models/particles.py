@@ -138,9 +138,11 @@ def particle_nonholonomic(a=None, b=None, c=None) -> ModelSpec:
     x, y, z and the length L.
     The default, a = -y / L, b = 0, c = 1 (dz = y dx / L), is genuinely nonholonomic: with
     A = (a, b, c), A . curl A = 1 / L is nowhere zero, so by Frobenius' theorem no family of
-    surfaces f(x, y, z) = const carries the motion; taking the particle around a closed
-    loop in the (x, y) plane raises it by the loop's area / L. Constant a, b, c would be
-    integrable (the particle would stay on the plane a x + b y + c z = const).
+    surfaces f(x, y, z) = const carries the motion: dz = y dx / L, and since the loop integral
+    of y dx is minus the enclosed area, taking the particle once counter-clockwise (seen
+    from +z) around a closed loop in the (x, y) plane lowers it by the loop's area / L;
+    clockwise raises it. Constant a, b, c would be integrable (the particle would stay on
+    the plane a x + b y + c z = const).
     Gravity m g along -z; inputs Fx, Fy, Fz: a further force, N.
     """
     x, y, z = me.dynamicsymbols("x y z")
@@ -187,6 +189,10 @@ def particle_parabolic_cylindrical() -> ModelSpec:
     the output `speed` is ds/dt). Outputs Xi, H, Z: the generalised forces of the constant
     force (N*m, N*m, N). No gravity beyond the force itself; inputs Fx, Fy, Fz add to it.
     The coordinates are singular on the z axis (xi = eta = 0).
+    The force is conservative (potential -(X0 x + Y0 y + Z0 z)) but enters as a generalised
+    force, not through V, so `energy()` is the kinetic energy alone and grows by the force's
+    work; the conserved quantity is T - (X0 x + Y0 y + Z0 z), with x, y, z the outputs
+    position_x, position_y, position_z.
     """
     xi, eta, zeta = me.dynamicsymbols("xi eta zeta")
     l = sp.Symbol("l", positive=True)

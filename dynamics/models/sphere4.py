@@ -38,8 +38,8 @@ def particle_on_4_sphere(potential=None, potential_parameters: Mapping | None = 
     w^2 + x^2 = const is a function V(theta) alone, and varphi, psi are cyclic: their
     momenta p_varphi = m R^2 cos^2(theta) varphi' and p_psi = m R^2 sin^2(theta) psi' are
     conserved (outputs p_varphi, p_psi; also the position w, x, y, z).
-    potential: sympy expression (or text, read without running code) in theta, R and the names of
-    `potential_parameters` ({name: default or Param}). Default V = k R^2 cos^2(theta) / 2,
+    potential: sympy expression (or text, read without running code) in theta, R and the
+    names of `potential_parameters` ({name: default or Param}). Default V = k R^2 cos^2(theta) / 2,
     i.e. k (w^2 + x^2) / 2, a spring pulling the particle towards the plane w = x = 0.
     """
     theta, varphi, psi = me.dynamicsymbols("theta varphi psi")

@@ -143,3 +143,32 @@ def test_upright_straight_rolling_is_a_steady_motion():
     np.testing.assert_allclose(system.constraint_residual(x), 0.0, atol=1e-15)
     # upright, straight: all accelerations vanish (to round-off of O(1) terms)
     np.testing.assert_allclose(system.accelerations(0.0, x), 0.0, atol=1e-13)
+
+
+def test_contact_point_moves_in_the_floor_plane_xz():
+    """Section 7.5 says the contact point moves "in the (x, y) plane"; the floor is y = 0, so
+    it moves in the (x, z) plane, along i' = sin(phi) i + cos(phi) k (docs/errata.md)."""
+    system = dynamics.get_model("rolling_disk").compile()
+    assert system.coordinates[:2] == ("x", "z")  # no y: the contact stays on the floor
+    rng = np.random.default_rng(3)
+    x = np.zeros((20, 10))
+    x[:, 2:5] = rng.uniform(0.3, 2.8, (20, 3))
+    x[:, 5:] = rng.uniform(-2.0, 2.0, (20, 5))
+    x = system.project(x)
+    phi, psid, r = x[:, 3], x[:, 9], system.parameters["r"]
+    np.testing.assert_allclose(x[:, 5], -r * psid * np.sin(phi), atol=1e-12)
+    np.testing.assert_allclose(x[:, 6], -r * psid * np.cos(phi), atol=1e-12)
+
+
+def test_disk_leans_towards_j_cross_i_prime():
+    """The centre sits r cos(theta) from the contact along j x i' (Fig. 7-8's x-bar, z-bar,
+    whose T the model reproduces in test_energies_equal_730_733_734): the lean direction of
+    rolling_disk's docstring."""
+    th, ph, r = sp.symbols("theta phi r")
+    i_prime = sp.Matrix([sp.sin(ph), 0, sp.cos(ph)])  # (i, j, k) components
+    j = sp.Matrix([0, 1, 0])
+    centre_offset = sp.Matrix(
+        [r * sp.cos(th) * sp.cos(ph), r * sp.sin(th), -r * sp.cos(th) * sp.sin(ph)]
+    )
+    horizontal = sp.Matrix([centre_offset[0], 0, centre_offset[2]])
+    assert sp.simplify(horizontal - r * sp.cos(th) * j.cross(i_prime)) == sp.zeros(3, 1)

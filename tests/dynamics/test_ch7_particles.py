@@ -231,3 +231,38 @@ def test_bad_constraints_are_refused_by_name():
         particle_nonholonomic(a="w * x")
     with pytest.raises(ValueError, match="all zero"):
         particle_nonholonomic(a=0, b=0, c=0)
+
+
+def test_counter_clockwise_loop_lowers_the_nonholonomic_particle():
+    """dz = y dx / L: once round a circle of radius R counter-clockwise in (x, y), the
+    constraint moves the particle by -pi R^2 / L (the docstring's rule)."""
+    system = dynamics.get_model("particle_nonholonomic").compile()
+    R, L = 0.7, system.parameters["L"]
+    s = np.linspace(0.0, 2 * np.pi, 2001)
+    x = np.zeros((s.size, 6))
+    x[:, 0], x[:, 1] = R * np.cos(s), R * np.sin(s)
+    x[:, 3], x[:, 4] = -R * np.sin(s), R * np.cos(s)  # d/ds of the path, counter-clockwise
+    zdot = -system.constraint_residual(x)[:, 0]  # a xdot + b ydot + 1 * zdot = 0
+    dz = np.sum((zdot[1:] + zdot[:-1]) / 2 * np.diff(s))
+    np.testing.assert_allclose(dz, -np.pi * R**2 / L, rtol=1e-5)
+
+
+def test_spherical_velocity_components_omitted_before_711():
+    """7.2 says "Differentiating," and prints T (7.11) without the rates of (7.10); they are
+    supplied here (docs/errata.md) and give (7.11)."""
+    model = dynamics.get_model("particle_spherical")
+    (r, th, phi), p, *_ = _symbols(model)
+    out = model.derived.outputs
+    s, c = sp.sin, sp.cos
+    rd, thd, phid = r.diff(t), th.diff(t), phi.diff(t)
+    rates = [
+        rd * s(th) * c(phi) + r * thd * c(th) * c(phi) - r * phid * s(th) * s(phi),
+        rd * s(th) * s(phi) + r * thd * c(th) * s(phi) + r * phid * s(th) * c(phi),
+        rd * c(th) - r * thd * s(th),
+    ]
+    for name, rate in zip(("position_x", "position_y", "position_z"), rates):
+        assert sp.expand(out[name].diff(t) - rate) == 0
+    T = p["m"] * sum(v**2 for v in rates) / 2
+    assert sp.expand(sp.expand_trig(T - model.derived.kinetic)).subs(
+        c(th) ** 2, 1 - s(th) ** 2
+    ).expand().subs(c(phi) ** 2, 1 - s(phi) ** 2).expand() == 0
