@@ -99,6 +99,18 @@ class CurveLogger(BaseCallback):
         write_rows(self.eval_csv, EVAL_FIELDS, self.evals)
         plot_curves(self.episodes, self.evals, self.plot_png, self.title)
 
+    def truncate(self, up_to_timesteps: int) -> None:
+        """Drop the rows recorded after `up_to_timesteps` (a run stopped mid-rollout keeps
+        the count its weights have learnt from; the resumed run records them again)."""
+        self.episodes = [r for r in self.episodes if int(r["timesteps"]) <= up_to_timesteps]
+        self.evals = [r for r in self.evals if int(r["timesteps"]) <= up_to_timesteps]
+
+    def close(self) -> None:
+        """Flush, and remove the staging directory if the evaluations left it empty."""
+        self.flush()
+        if self.staging_dir.exists() and not any(self.staging_dir.iterdir()):
+            self.staging_dir.rmdir()
+
 
 class _AfterEval(BaseCallback):
     def __init__(self, owner: CurveLogger):
