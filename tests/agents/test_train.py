@@ -7,8 +7,17 @@ import pytest
 
 import envs
 from agents import train as train_mod
+from agents.common import UserError
 from agents.policies import SB3Policy
 from agents.train import latest_checkpoint, main, train
+
+
+def _env_id(name: str) -> str:
+    """The registered id of a Lagrange env by name, whatever its version."""
+    return next(env_id for env_id in envs.ENV_IDS if f"/{name}-" in env_id)
+
+
+ARM, BEAD, CRANK = _env_id("TwoLinkArm"), _env_id("BeadOnRod"), _env_id("CrankSlider")
 
 # PPO with one env collects rollouts of n_steps = 256 or 512 steps (ppo.yml): 512 steps are
 # whole rollouts on every env.
@@ -35,7 +44,7 @@ def test_a_few_hundred_steps_train_end_to_end(env_id, tmp_path):
 
 
 def test_saved_model_gives_identical_actions(tmp_path):
-    result = train("Lagrange/TwoLinkArm-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+    result = train(ARM, timesteps=512, run_dir=tmp_path, **SMALL)
     vecnorm = result.model.get_vec_normalize_env()
     shape = (32,) + vecnorm.observation_space.shape
     obs = np.random.default_rng(0).uniform(-1, 1, shape).astype(np.float32)
@@ -47,9 +56,9 @@ def test_saved_model_gives_identical_actions(tmp_path):
 
 def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_path):
     # A run stopped at its 512-step checkpoint, then resumed to a budget of 1024.
-    train("Lagrange/BeadOnRod-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+    train(BEAD, timesteps=512, run_dir=tmp_path, **SMALL)
     first = (tmp_path / "eval.csv").read_text().splitlines()
-    result = train("Lagrange/BeadOnRod-v0", timesteps=1024, run_dir=tmp_path, resume=True, **SMALL)
+    result = train(BEAD, timesteps=1024, run_dir=tmp_path, resume=True, **SMALL)
     model = result.model
     assert model.num_timesteps == 1024
     assert model._total_timesteps == 1024  # a restarted schedule would count 512 here
@@ -64,7 +73,7 @@ def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_
 
 
 def test_resume_without_a_checkpoint_starts_fresh(tmp_path, capsys):
-    result = train("Lagrange/BeadOnRod-v0", timesteps=512, run_dir=tmp_path, resume=True, **SMALL)
+    result = train(BEAD, timesteps=512, run_dir=tmp_path, resume=True, **SMALL)
     assert result.timesteps == 512
     assert "starting a fresh run" in capsys.readouterr().err
 
@@ -81,13 +90,13 @@ def test_hyperparameters_exist_for_every_env_and_algorithm():
 @pytest.mark.parametrize(
     "argv, message",
     [
-        (["Lagrange/TwoLinkArm-v1"], "Did you mean 'Lagrange/TwoLinkArm-v0'"),
-        (["TwoLinkArm"], "Did you mean 'Lagrange/TwoLinkArm-v0'"),
-        (["Lagrange/Acrobot-v0", "--algo", "dqn"], "unknown algorithm 'dqn'"),
-        (["Lagrange/Acrobot-v0", "--timesteps", "-5"], "expected a positive integer, got -5"),
-        (["Lagrange/Acrobot-v0", "--timesteps", "lots"], "expected a positive integer"),
-        (["Lagrange/Acrobot-v0", "--n-envs", "0"], "expected a positive integer, got 0"),
-        (["Lagrange/Acrobot-v0", "--seed", "-1"], "expected an integer >= 0, got -1"),
+        ([ARM[:-1] + "9"], f"Did you mean {ARM!r}"),
+        (["TwoLinkArm"], f"Did you mean {ARM!r}"),
+        ([BEAD, "--algo", "dqn"], "unknown algorithm 'dqn'"),
+        ([BEAD, "--timesteps", "-5"], "expected a positive integer, got -5"),
+        ([BEAD, "--timesteps", "lots"], "expected a positive integer"),
+        ([BEAD, "--n-envs", "0"], "expected a positive integer, got 0"),
+        ([BEAD, "--seed", "-1"], "expected an integer >= 0, got -1"),
     ],
 )
 def test_cli_rejects_bad_arguments_with_clear_messages(argv, message, capsys):
@@ -100,7 +109,7 @@ def test_cli_rejects_bad_arguments_with_clear_messages(argv, message, capsys):
 def test_cli_trains_and_reports(tmp_path, capsys):
     code = main(
         [
-            "Lagrange/BeadOnRod-v0",
+            BEAD,
             "--timesteps",
             "512",
             "--n-envs",
@@ -116,23 +125,32 @@ def test_cli_trains_and_reports(tmp_path, capsys):
     )
     assert code == 0
     out = capsys.readouterr().out
-    assert "ppo on Lagrange/BeadOnRod-v0: 512 steps" in out and "model.zip" in out
+    assert f"ppo on {BEAD}: 512 steps" in out and "model.zip" in out
 
 
 @pytest.mark.parametrize("algo", ["sac", "td3"])
 def test_off_policy_algorithms_train_and_resume_with_their_replay_buffer(algo, tmp_path):
     kwargs = dict(algo=algo, eval_freq=300, eval_episodes=1, progress=False, run_dir=tmp_path)
-    train("Lagrange/CrankSlider-v0", timesteps=300, **kwargs)
+    train(CRANK, timesteps=300, **kwargs)
     steps, _ = latest_checkpoint(tmp_path / "checkpoints")
     assert steps == 300
     assert (tmp_path / "checkpoints" / f"rl_model_replay_buffer_{steps}_steps.pkl").exists()
-    result = train("Lagrange/CrankSlider-v0", timesteps=400, resume=True, **kwargs)
+    result = train(CRANK, timesteps=400, resume=True, **kwargs)
     assert result.model.num_timesteps == 400
     assert result.model.replay_buffer.size() == 400  # the buffer came back with the model
 
 
-def test_a_fresh_run_discards_an_older_runs_checkpoints(tmp_path):
-    train("Lagrange/CrankSlider-v0", timesteps=1024, run_dir=tmp_path, **SMALL)
-    train("Lagrange/CrankSlider-v0", timesteps=512, run_dir=tmp_path, **SMALL)
+def test_an_earlier_run_is_replaced_only_when_asked(tmp_path):
+    train(CRANK, timesteps=1024, run_dir=tmp_path, **SMALL)
+    with pytest.raises(UserError) as refused:
+        train(CRANK, timesteps=512, run_dir=tmp_path, **SMALL)
+    message = str(refused.value)
+    assert str(tmp_path) in message and "--resume" in message and "--overwrite" in message
+    assert latest_checkpoint(tmp_path / "checkpoints")[0] == 1024  # nothing was touched
+    train(CRANK, timesteps=512, run_dir=tmp_path, overwrite=True, **SMALL)
     names = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
     assert names == ["rl_model_512_steps.zip", "rl_model_vecnormalize_512_steps.pkl"]
+    assert [r.split(",")[0] for r in (tmp_path / "eval.csv").read_text().splitlines()] == [
+        "timesteps",
+        "512",
+    ]
