@@ -7,7 +7,8 @@
 >>> sys.state_derivative(0.0, [0.1, 0.2, 0.0, 0.0], [0.0, 0.0])
 """
 
+from .angles import wrap
 from .model import Model, get_model, list_models, register
 from .system import System
 
-__all__ = ["Model", "System", "get_model", "list_models", "register"]
+__all__ = ["Model", "System", "get_model", "list_models", "register", "wrap"]

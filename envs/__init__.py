@@ -1,37 +1,75 @@
-"""Gymnasium environments on the derived Lagrangian models.
+"""Gymnasium environments of Lagrangian systems: a task declaration on one batched runtime.
 
-Importing this package registers, in the `Lagrange` namespace, every id of `ENV_IDS`, each
-with its episode limit and a native `vector_entry_point`::
+Importing this package registers the built-in tasks in the `Lagrange` namespace, each with
+its episode limit and a native `vector_entry_point`::
 
     import gymnasium as gym
     import envs
 
-    env = gym.make("Lagrange/TwoLinkArm-v0")
-    vec = gym.make_vec(
-        "Lagrange/TwoLinkArm-v0", num_envs=1024, vectorization_mode="vector_entry_point"
-    )
+    env = gym.make("Lagrange/TwoLinkArm-v1")
+    vec = gym.make_vec("Lagrange/TwoLinkArm-v1", num_envs=1024,
+                       vectorization_mode="vector_entry_point")
+
+A new system is a `Task` (see `envs.task`) on any model, registered with one call of
+`gymnasium.register` (`register` below is that call, spelled out).
 """
 
-from gymnasium.envs.registration import register, registry
+from gymnasium.envs.registration import registry
 
-_ENVS = {
-    # id: (module, env class, max_episode_steps); the vector env is the class "...VectorEnv"
-    "Lagrange/TwoLinkArm-v0": ("envs.arm", "TwoLinkArm", 200),
-    "Lagrange/Acrobot-v0": ("envs.acrobot", "Acrobot", 500),
-    "Lagrange/RollingDisk-v0": ("envs.disk", "RollingDisk", 400),
-    "Lagrange/BeadOnRod-v0": ("envs.bead", "BeadOnRod", 200),
-    "Lagrange/CrankSlider-v0": ("envs.crank", "CrankSlider", 200),
-}
+from dynamics import wrap
 
-ENV_IDS: tuple[str, ...] = tuple(_ENVS)
+from .env import LagrangianEnv
+from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
+from .vector import LagrangianVectorEnv
 
-for _id, (_module, _name, _steps) in _ENVS.items():
-    if _id not in registry:
-        register(
-            id=_id,
-            entry_point=f"{_module}:{_name}Env",
-            vector_entry_point=f"{_module}:{_name}VectorEnv",
-            max_episode_steps=_steps,
-        )
 
-__all__ = ["ENV_IDS"]
+def register(env_id: str, task: Task, **kwargs) -> None:
+    """`gymnasium.register(env_id, ...)` for a task: the single and vector entry points,
+    the task, and its `max_episode_steps` (override with max_episode_steps=...)."""
+    import gymnasium
+
+    if env_id in registry:
+        return
+    gymnasium.register(
+        id=env_id,
+        entry_point="envs:LagrangianEnv",
+        vector_entry_point="envs:LagrangianVectorEnv",
+        kwargs={"task": task, **kwargs.pop("kwargs", {})},
+        max_episode_steps=kwargs.pop("max_episode_steps", task.max_episode_steps),
+        **kwargs,
+    )
+
+
+def _register_builtins() -> tuple[str, ...]:
+    from . import acrobot, arm, bead, crank, disk
+
+    builtins = {
+        "Lagrange/TwoLinkArm-v1": arm.TASK,
+        "Lagrange/Acrobot-v1": acrobot.TASK,
+        "Lagrange/RollingDisk-v1": disk.TASK,
+        "Lagrange/BeadOnRod-v1": bead.TASK,
+        "Lagrange/CrankSlider-v1": crank.TASK,
+    }
+    for env_id, task in builtins.items():
+        register(env_id, task)
+    return tuple(builtins)
+
+
+ENV_IDS: tuple[str, ...] = _register_builtins()
+
+__all__ = [
+    "ENV_IDS",
+    "Angle",
+    "AngleError",
+    "Derived",
+    "Goal",
+    "Heuristic",
+    "LQRHints",
+    "LagrangianEnv",
+    "LagrangianVectorEnv",
+    "Task",
+    "Term",
+    "Value",
+    "register",
+    "wrap",
+]

@@ -1,149 +1,149 @@
-"""Lagrange/Acrobot-v0: swing the two-link arm up with its elbow motor alone and balance it."""
+"""Lagrange/Acrobot-v1: swing the two-link arm up with its elbow motor alone and balance it.
+
+## Description
+The two-link arm of section 7.4 (model `two_link_arm`, defaults: two uniform 1 kg, 1 m
+rods) with the shoulder motor removed: only the elbow motor M2 (link 1 on link 2) acts.
+Its 3 N*m are too small to hold link 2 horizontal (m2 l2 g = 4.9 N*m for the default
+arm), so the arm must be swung up by pumping energy, then balanced inverted.
+
+```
+        A (shoulder, free)    theta1, theta2: absolute angles of the links from
+        |\\                    the downward vertical, counter-clockwise positive
+        | \\ theta1            (0 hangs; the goal is theta1 = theta2 = pi).
+        |  C (elbow motor)
+        |  |\\ theta2
+           |  D (tip)
+```
+The goal (inverted) is fixed, so it is not observed; `goal_from_observation` returns
+(pi, pi).
+
+## Action Space
+`Box(-1, 1, (1,), float32)`; action 1 is the input's limit (`max_input`, overridable
+when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
+ValueError, complex ones TypeError.
+
+| Num | Input | Limit |
+|-----|-------|-------|
+| 0 | M2 | 3 |
+
+## Observation Space
+`Box(low, high, (6,), float32)`:
+
+| Num | Observation | Min | Max | Unit |
+|-----|-------------|-----|-----|------|
+| 0 | cos theta1 | -1 | 1 |  |
+| 1 | sin theta1 | -1 | 1 |  |
+| 2 | cos theta2 | -1 | 1 |  |
+| 3 | sin theta2 | -1 | 1 |  |
+| 4 | theta1_dot | -25.13 | 25.13 | rad/s |
+| 5 | theta2_dot | -25.13 | 25.13 | rad/s |
+
+## Reward terms
+
+| Term | Min | Max | Meaning |
+|---|---|---|---|
+| height | -1 | 1 | tip height over reach |
+| rate | -12.63 | 0 | -0.01 (theta1'^2 + theta2'^2) |
+| effort | -0.001 | 0 | -0.001 action^2 |
+
+## Rewards
+On the state after the step, the sum of `height` = -(l cos theta1 + 2 l2 cos theta2) /
+(l + 2 l2), the tip's height over its reach (from -1 hanging to 1 inverted), `rate` =
+-0.01 (theta1'^2 + theta2'^2) and `effort` = -0.001 action^2.
+
+## Starting State
+Hanging: angles and rates uniform in [-0.1, 0.1] (rad, rad/s).
+`reset(options={"state": x})` sets the state.
+
+## Episode End
+Termination: divergence, a rate beyond 8 pi rad/s or a non-finite state
+(`info["diverged"]`); that step's reward adds (steps left) x (the lowest reward a step can
+pay, -13.6), so ending early never pays. Truncation: 500 steps (25 s).
+`info["is_success"]`: both links within 0.2 rad of inverted and both rates below 1 rad/s.
+
+## Arguments
+`gymnasium.make("Lagrange/Acrobot-v1", control_period=0.05, substeps=25, max_input=3.0,
+render_mode=None, **model_parameters)` with the parameters of `two_link_arm` by name.
+Integration: RK4, 25 substeps of 2 ms per 50 ms step; an unforced episode from the starting
+distribution keeps the energy within 1e-9 of the potential-energy range (3e-12 measured
+over 100 episodes, tests/envs/test_physics.py).
+
+## Version History
+* v1: divergence terminates with the early-end penalty (v0 truncated, so diverging paid);
+  built on the task declaration.
+* v0: initial version.
+"""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
+
+from dynamics import wrap
 
 from . import rendering
-from .base import ANGLE_LIMIT, LagrangianEnv, LagrangianVectorEnv, wrap
+from .task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 
 RATE_LIMIT = 8 * np.pi
-"""Bound on |theta1'|, |theta2'| (rad/s): observation bound; beyond it the episode diverged."""
+"""Bound on |theta1'|, |theta2'| (rad/s): observation bound; beyond it the run diverged."""
 ANGLE_TOLERANCE = 0.2
 """Success: both links within this (rad) of inverted ..."""
 RATE_TOLERANCE = 1.0
 """... and both rates below this (rad/s)."""
 
 
-@njit(cache=True)
-def evaluate(X, A, G, Y, c, obs, terms, flags):
-    """Observation, reward terms (height, rate, effort), [terminated, success] per row.
-    c = [l, length of link 2]."""
-    l, l2 = c[0], c[1]
-    for b in range(X.shape[0]):
-        th1, th2, w1, w2 = X[b, 0], X[b, 1], X[b, 2], X[b, 3]
-        c1, c2 = math.cos(th1), math.cos(th2)
-        obs[b, 0] = c1
-        obs[b, 1] = c2
-        obs[b, 2] = math.sin(th1)
-        obs[b, 3] = math.sin(th2)
-        obs[b, 4] = w1
-        obs[b, 5] = w2
-        terms[b, 0] = -(l * c1 + l2 * c2) / (l + l2)  # tip height / reach, in [-1, 1]
-        terms[b, 1] = -0.01 * (w1 * w1 + w2 * w2)
-        terms[b, 2] = -0.001 * A[b, 0] * A[b, 0]
-        flags[b, 0] = False
-        flags[b, 1] = (
-            abs(wrap(th1 - G[b, 0])) < ANGLE_TOLERANCE
-            and abs(wrap(th2 - G[b, 1])) < ANGLE_TOLERANCE
-            and abs(w1) < RATE_TOLERANCE
-            and abs(w2) < RATE_TOLERANCE
-        )
+def reward(x, a, g, p):
+    reach = p.l + 2 * p.l2
+    height = -(p.l * np.cos(x[:, 0]) + 2 * p.l2 * np.cos(x[:, 1])) / reach
+    return height, -0.01 * (x[:, 2] ** 2 + x[:, 3] ** 2), -0.001 * a[:, 0] ** 2
 
 
-class AcrobotEnv(LagrangianEnv):
-    """
-    ## Description
-    The two-link arm of section 7.4 (model `two_link_arm`, defaults: two uniform 1 kg, 1 m
-    rods) with the shoulder motor removed: only the elbow motor M2 (link 1 on link 2)
-    acts. Its torque is too small to hold link 2 horizontal (m2 l2 g = 4.9 N*m for the
-    default arm), so the arm must be swung up by pumping energy, then balanced inverted.
-
-    ```
-            A (shoulder, free)    theta1, theta2: absolute angles of the links from
-            |\\                    the downward vertical, counter-clockwise positive
-            | \\ theta1            (0 hangs; the goal is theta1 = theta2 = pi).
-            |  C (elbow motor)
-            |  |\\ theta2
-               |  D (tip)
-    ```
-
-    ## Action Space
-    | Num | Action          | Min | Max | Unit                   |
-    |-----|-----------------|-----|-----|------------------------|
-    | 0   | elbow motor M2  | -1  | 1   | x `max_torque` (3 N*m) |
-
-    Actions outside [-1, 1] are clipped; NaN or inf raise ValueError. The model's input is
-    [M1, M2] = [0, action * max_torque].
-
-    ## Observation Space
-    float32, shape (6,): cos theta1, cos theta2, sin theta1, sin theta2 (each in [-1, 1]),
-    theta1', theta2' (rad/s, in [-8 pi, 8 pi]). The goal (inverted) is fixed, so it is
-    not observed; `goal_from_observation` returns (pi, pi).
-
-    ## Rewards
-    On the state after the step, the sum of `height` = -(l cos theta1 + 2 l2 cos theta2) /
-    (l + 2 l2), the tip's height over its reach (from -1 hanging to 1 inverted), `rate` =
-    -0.01 (theta1'^2 + theta2'^2) and `effort` = -0.001 action^2.
-
-    ## Starting State
-    Hanging: angles and rates uniform in [-0.1, 0.1] (rad, rad/s).
-    `reset(options={"state": x})` sets the state.
-
-    ## Episode End
-    No termination. Truncation: 500 steps (25 s), or divergence (a non-finite state or a
-    rate beyond 8 pi rad/s; `info["diverged"]`). `info["is_success"]`: both links within
-    0.2 rad of inverted and both rates below 1 rad/s.
-
-    ## Arguments
-    `gymnasium.make("Lagrange/Acrobot-v0", control_period=0.05, substeps=25,
-    max_torque=3.0, render_mode=None, **model_parameters)` with the parameters of
-    `two_link_arm` by name. Integration: RK4, 25 substeps of 2 ms per 50 ms step; an
-    unforced episode from the starting distribution keeps the energy within 1e-9 of the
-    potential-energy range (3e-12 measured over 100 episodes, tests/envs/test_physics.py;
-    swinging up, the arm moves as fast as TwoLinkArm's, which keeps 1e-6 at this step).
-
-    ## Version History
-    * v0: initial version.
-    """
-
-    model = "two_link_arm"
-    actuated = (1,)
-    default_control_period = 0.05
-    default_substeps = 25
-    default_max_torque = (3.0,)
-    goal_size = 2
-    reward_names = ("height", "rate", "effort")
-    evaluate = staticmethod(evaluate)
-
-    def _periodic(self):
-        return (True, True)
-
-    def _task_constants(self) -> np.ndarray:
-        p = self.system.parameters
-        return np.array([p["l"], 2 * p["l2"]])
-
-    def _observation_high(self) -> np.ndarray:
-        return np.array([1, 1, 1, 1, RATE_LIMIT, RATE_LIMIT], dtype=np.float64)
-
-    def _state_limits(self) -> np.ndarray:
-        return np.array([ANGLE_LIMIT, ANGLE_LIMIT, RATE_LIMIT, RATE_LIMIT])
-
-    def _sample_start(self, rng):
-        return rng.uniform(-0.1, 0.1, 4), np.array([np.pi, np.pi])
-
-    def _check_goal(self, goal):
-        if not np.allclose(np.cos(goal), -1.0):
-            raise ValueError(f"The acrobot's goal is inverted, (pi, pi); got {goal}.")
-
-    def _state_from_observation(self, obs):
-        return np.concatenate([np.arctan2(obs[:, 2:4], obs[:, 0:2]), obs[:, 4:6]], axis=1)
-
-    def _goal_from_observation(self, obs):
-        return np.full((len(obs), 2), np.pi)
-
-    def _operating_state(self, goal, x):
-        return np.concatenate([goal, np.zeros_like(goal)], axis=1)
-
-    def _draw(self, surface, x, goal, history):
-        p = self.system.parameters
-        rendering.draw_arm(surface, x, goal, p["l"], 2 * p["l2"])
+def success(x, a, g, p):
+    up = (np.abs(wrap(x[:, 0] - g[:, 0])) < ANGLE_TOLERANCE) & (
+        np.abs(wrap(x[:, 1] - g[:, 1])) < ANGLE_TOLERANCE
+    )
+    return up & (np.abs(x[:, 2]) < RATE_TOLERANCE) & (np.abs(x[:, 3]) < RATE_TOLERANCE)
 
 
-class AcrobotVectorEnv(LagrangianVectorEnv):
-    """`AcrobotEnv` copies stepped in one batched call (see `LagrangianVectorEnv`)."""
+def draw(surface, x, g, p, history):
+    rendering.draw_arm(surface, x, g, p.l, 2 * p.l2)
 
-    env_class = AcrobotEnv
+
+TASK = Task(
+    name="Acrobot",
+    model="two_link_arm",
+    actuated=("M2",),
+    max_input=(3.0,),
+    observation=(
+        Angle("theta1"),
+        Angle("theta2"),
+        Value("theta1_dot", unit="rad/s"),
+        Value("theta2_dot", unit="rad/s"),
+    ),
+    reward=reward,
+    terms=(
+        Term("height", -1.0, 1.0, "tip height over reach"),
+        Term("rate", -0.02 * RATE_LIMIT**2, 0.0, "-0.01 (theta1'^2 + theta2'^2)"),
+        Term("effort", -0.001, 0.0, "-0.001 action^2"),
+    ),
+    success=success,
+    goal=(
+        Goal("theta1*", "rad", np.pi, np.pi, angle=True),
+        Goal("theta2*", "rad", np.pi, np.pi, angle=True),
+    ),
+    start={name: (-0.1, 0.1) for name in ("theta1", "theta2", "theta1_dot", "theta2_dot")},
+    limits={"theta1_dot": RATE_LIMIT, "theta2_dot": RATE_LIMIT},
+    operating_point={"theta1": "theta1*", "theta2": "theta2*"},
+    control_period=0.05,
+    substeps=25,
+    max_episode_steps=500,
+    # >= 99 % success up to 1.75x this box; the basin is a thin slab, not a small ball (no
+    # 3 N*m controller recovers once the slow unstable mode, the arm leaning as a whole,
+    # exceeds |w'B|/lambda; tests/agents/test_lqr.py)
+    lqr=LQRHints(
+        default_scale=0.1,
+        region={"theta1": 0.01, "theta2": 0.01, "theta1_dot": 0.02, "theta2_dot": 0.02},
+    ),
+    heuristic=Heuristic("energy swing-up + LQR", "agents.policies:SwingUpPolicy"),
+    hyperparams={"ppo": {"n_timesteps": 150_000, "gamma": 0.99}},
+    draw=draw,
+)

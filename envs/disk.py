@@ -1,14 +1,103 @@
-"""Lagrange/RollingDisk-v0: roll a thin disk at a commanded speed and heading without falling."""
+"""Lagrange/RollingDisk-v1: roll a thin disk at a commanded speed and heading without falling.
+
+## Description
+The thin uniform disk of section 7.5 (model `rolling_disk`) rolls without slipping on the
+horizontal floor. A drive torque acts about its axle and a steering torque about the
+vertical. The task: roll at a commanded speed v* and heading phi*, drawn at reset, without
+falling over.
+
+```
+      y (up)                 theta: tilt of the disk's plane from the floor, pi/2
+      |    . disk            upright (the lean is theta - pi/2);
+      |  /  \\  i'            phi: heading, the rolling direction is
+      | |  G | --->           i' = (sin phi, 0, cos phi) in the floor's (x, z);
+      |  \\  /                psi: spin about the axle; forward speed v = -r psi'.
+      |___o______ x          (x, z): the contact point; x' = v sin phi,
+     /  contact               z' = v cos phi (the rolling constraints).
+    z
+```
+Upright straight rolling of this disk is self-stable when the spin exceeds sqrt(g / (3 r))
+(v > 0.99 m/s for the default r = 0.3 m); slower, it must be balanced by steering. A
+positive drive torque spins psi up, i.e. brakes forward rolling (v = -r psi'). The cyclic
+coordinates x, z, psi are not observed (`state_from_observation` returns them as 0, with
+x', z' from the rolling constraints).
+
+## Action Space
+`Box(-1, 1, (2,), float32)`; action 1 is the input's limit (`max_input`, overridable
+when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
+ValueError, complex ones TypeError.
+
+| Num | Input | Limit |
+|-----|-------|-------|
+| 0 | tau_drive | 0.5 |
+| 1 | tau_steer | 0.1 |
+
+## Observation Space
+`Box(low, high, (10,), float32)`:
+
+| Num | Observation | Min | Max | Unit |
+|-----|-------------|-----|-----|------|
+| 0 | cos theta | -1 | 1 |  |
+| 1 | sin theta | -1 | 1 |  |
+| 2 | cos phi | -1 | 1 |  |
+| 3 | sin phi | -1 | 1 |  |
+| 4 | theta_dot | -25.13 | 25.13 | rad/s |
+| 5 | phi_dot | -25.13 | 25.13 | rad/s |
+| 6 | psi_dot | -125.7 | 125.7 | rad/s |
+| 7 | v* | -3 | 3 | m/s |
+| 8 | cos phi* | -1 | 1 |  |
+| 9 | sin phi* | -1 | 1 |  |
+
+## Reward terms
+
+| Term | Min | Max | Meaning |
+|---|---|---|---|
+| alive | 1 | 1 | 1 per step |
+| speed | -4 | 0 | -(v - v*)^2, at most 4 |
+| heading | -9.87 | 0 | -(phi - phi*)^2 |
+| lean | -0.2742 | 0 | -(theta - pi/2)^2 |
+| effort | -0.002 | 0 | -0.001 |action|^2 |
+
+## Rewards
+On the state after the step, the sum of `alive` = 1, `speed` = -(v - v*)^2 (at most 4),
+`heading` = -(phi - phi*)^2 (wrapped to [-pi, pi)), `lean` = -(theta - pi/2)^2 and
+`effort` = -0.001 |action|^2.
+
+## Starting State
+v* uniform in [0.5, 3] m/s and phi* uniform in [-pi, pi); the disk rolls at v* with
+heading phi* + U(-pi/4, pi/4), lean U(-0.05, 0.05) rad, theta', phi' U(-0.1, 0.1) rad/s, at
+the origin. `reset(options={"state": x, "goal": (v*, phi*)})` sets them (a given state's
+rates are projected onto the rolling constraints).
+
+## Episode End
+Termination: the lean |theta - pi/2| exceeds pi/6 (fallen), or divergence (a non-finite
+state or a rate beyond its bound; `info["diverged"]`); that step's reward adds (steps left)
+x (the lowest reward a step can pay, -13.1), so ending early never pays. Truncation: 400
+steps (20 s). `info["is_success"]`: |v - v*| < 0.1 m/s and heading within 0.1 rad, not
+fallen. `info["constraint_residual"]`: the rolling constraints' residual (m/s), at
+round-off: each RK4 substep is projected back onto them.
+
+## Arguments
+`gymnasium.make("Lagrange/RollingDisk-v1", control_period=0.05, substeps=10,
+max_input=(0.5, 0.1), render_mode=None, **model_parameters)` with the parameters of
+`rolling_disk` by name (m, r, I, J, g). Integration: RK4, 10 substeps of 5 ms per 50 ms
+step; an unforced episode keeps the energy within 1e-8 of its initial value (relative; 2e-9
+measured over 100 episodes, tests/envs/test_physics.py).
+
+## Version History
+* v1: falling and divergence terminate with the early-end penalty; the speed term is
+  bounded at -4; built on the task declaration.
+* v0: initial version.
+"""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
+
+from dynamics import wrap
 
 from . import rendering
-from .base import ANGLE_LIMIT, LagrangianEnv, LagrangianVectorEnv, wrap
+from .task import Angle, Goal, LQRHints, Task, Term, Value
 
 LEAN_LIMIT = np.pi / 6
 """The episode terminates when |theta - pi/2| (the lean from upright) exceeds this (rad)."""
@@ -26,196 +115,111 @@ HEADING_TOLERANCE = 0.1
 """... and the heading within this (rad) of the command, upright."""
 
 
-@njit(cache=True)
-def evaluate(X, A, G, Y, c, obs, terms, flags):
-    """Observation, reward terms (alive, speed, heading, lean, effort), [terminated,
-    success] per row. c = [radius]."""
-    radius = c[0]
-    for b in range(X.shape[0]):
-        theta, phi = X[b, 2], X[b, 3]
-        thetad, phid, psid = X[b, 7], X[b, 8], X[b, 9]
-        obs[b, 0] = math.cos(theta)
-        obs[b, 1] = math.sin(theta)
-        obs[b, 2] = math.cos(phi)
-        obs[b, 3] = math.sin(phi)
-        obs[b, 4] = thetad
-        obs[b, 5] = phid
-        obs[b, 6] = psid
-        obs[b, 7] = G[b, 0]
-        obs[b, 8] = math.cos(G[b, 1])
-        obs[b, 9] = math.sin(G[b, 1])
-        speed_error = -radius * psid - G[b, 0]
-        heading_error = wrap(phi - G[b, 1])
-        lean = theta - 0.5 * math.pi
-        terms[b, 0] = 1.0
-        terms[b, 1] = -speed_error * speed_error
-        terms[b, 2] = -heading_error * heading_error
-        terms[b, 3] = -lean * lean
-        terms[b, 4] = -0.001 * (A[b, 0] * A[b, 0] + A[b, 1] * A[b, 1])
-        flags[b, 0] = abs(lean) > LEAN_LIMIT
-        flags[b, 1] = (
-            abs(speed_error) < SPEED_TOLERANCE
-            and abs(heading_error) < HEADING_TOLERANCE
-            and abs(lean) <= LEAN_LIMIT
-        )
+def reward(x, a, g, p):
+    speed_error = -p.r * x[:, 9] - g[:, 0]
+    heading_error = wrap(x[:, 3] - g[:, 1])
+    lean = x[:, 2] - 0.5 * np.pi
+    effort = -0.001 * (a[:, 0] ** 2 + a[:, 1] ** 2)
+    alive = np.ones_like(lean)
+    return alive, -(speed_error**2), -(heading_error**2), -lean * lean, effort
 
 
-class RollingDiskEnv(LagrangianEnv):
-    """
-    ## Description
-    The thin uniform disk of section 7.5 (model `rolling_disk`) rolls without slipping on
-    the horizontal floor. A drive torque acts about its axle and a steering torque about
-    the vertical. The task: roll at a commanded speed v* and heading phi*, drawn at reset,
-    without falling over.
-
-    ```
-          y (up)                 theta: tilt of the disk's plane from the floor, pi/2
-          |    . disk            upright (the lean is theta - pi/2);
-          |  /  \\  i'            phi: heading, the rolling direction is
-          | |  G | --->           i' = (sin phi, 0, cos phi) in the floor's (x, z);
-          |  \\  /                psi: spin about the axle; forward speed v = -r psi'.
-          |___o______ x          (x, z): the contact point; x' = v sin phi,
-         /  contact               z' = v cos phi (the rolling constraints).
-        z
-    ```
-    Upright straight rolling of this disk is self-stable when the spin exceeds
-    sqrt(g / (3 r)) (v > 0.99 m/s for the default r = 0.3 m); slower, it must be
-    balanced by steering.
-
-    ## Action Space
-    | Num | Action                     | Min | Max | Unit                       |
-    |-----|----------------------------|-----|-----|----------------------------|
-    | 0   | drive torque about the axle| -1  | 1   | x `max_torque[0]` (0.5 N*m)|
-    | 1   | steering torque, vertical  | -1  | 1   | x `max_torque[1]` (0.1 N*m)|
-
-    Clipped to [-1, 1]; NaN or inf raise ValueError. A positive drive torque spins psi
-    up, i.e. brakes forward rolling (v = -r psi').
-
-    ## Observation Space
-    float32, shape (10,): cos theta, sin theta, cos phi, sin phi (each in [-1, 1]), theta',
-    phi' (rad/s, in [-8 pi, 8 pi]), psi' (rad/s, in [-40 pi, 40 pi]), the commanded speed
-    v* (m/s), cos phi*, sin phi*. The cyclic coordinates x, z, psi are not observed
-    (`state_from_observation` returns them as 0, with x', z' from the constraints).
-
-    ## Rewards
-    On the state after the step, the sum of `alive` = 1, `speed` = -(v - v*)^2,
-    `heading` = -(phi - phi*)^2 (wrapped to [-pi, pi)), `lean` = -(theta - pi/2)^2 and
-    `effort` = -0.001 |action|^2. The alive bonus makes falling a loss.
-
-    ## Starting State
-    v* uniform in [0.5, 3] m/s and phi* uniform in [-pi, pi); the disk rolls at v* with
-    heading phi* + U(-pi/4, pi/4), lean U(-0.05, 0.05) rad, theta', phi' U(-0.1, 0.1)
-    rad/s, at the origin. `reset(options={"state": x, "goal": (v*, phi*)})` sets them
-    (a given state's rates are projected onto the rolling constraints).
-
-    ## Episode End
-    Termination: the lean |theta - pi/2| exceeds pi/6. Truncation: 400 steps (20 s), or
-    divergence (non-finite state or a rate beyond its bound; `info["diverged"]`).
-    `info["is_success"]`: |v - v*| < 0.1 m/s and heading within 0.1 rad, not fallen.
-    `info["constraint_residual"]`: the rolling constraints' residual (m/s), at round-off:
-    each RK4 substep is projected back onto them.
-
-    ## Arguments
-    `gymnasium.make("Lagrange/RollingDisk-v0", control_period=0.05, substeps=10,
-    max_torque=(0.5, 0.1), render_mode=None, **model_parameters)` with the parameters of
-    `rolling_disk` by name (m, r, I, J, g). Integration: RK4, 10 substeps of 5 ms per 50 ms
-    step; an unforced episode keeps the energy within 1e-8 of its initial value (relative;
-    2e-9 measured over 100 episodes, tests/envs/test_physics.py).
-
-    ## Version History
-    * v0: initial version.
-    """
-
-    model = "rolling_disk"
-    actuated = (0, 1)
-    default_control_period = 0.05
-    default_substeps = 10
-    default_max_torque = (0.5, 0.1)
-    goal_size = 2
-    reward_names = ("alive", "speed", "heading", "lean", "effort")
-    evaluate = staticmethod(evaluate)
-
-    @property
-    def _radius(self) -> float:
-        return self.system.parameters["r"]
-
-    def _periodic(self):
-        return (False, False, True, True, True)
-
-    def _task_constants(self) -> np.ndarray:
-        return np.array([self._radius])
-
-    def _observation_high(self) -> np.ndarray:
-        vmax = SPEED_RANGE[1]
-        t, s = TILT_RATE_LIMIT, SPIN_RATE_LIMIT
-        return np.array([1, 1, 1, 1, t, t, s, vmax, 1, 1], dtype=np.float64)
-
-    def _state_limits(self) -> np.ndarray:
-        a, t, v = ANGLE_LIMIT, TILT_RATE_LIMIT, SPEED_LIMIT
-        return np.array([a, a, a, a, a, v, v, t, t, SPIN_RATE_LIMIT])
-
-    def _sample_start(self, rng):
-        speed = rng.uniform(*SPEED_RANGE)
-        heading = rng.uniform(-np.pi, np.pi)
-        phi = heading + rng.uniform(-np.pi / 4, np.pi / 4)
-        theta = np.pi / 2 + rng.uniform(-0.05, 0.05)
-        thetad, phid = rng.uniform(-0.1, 0.1, 2)
-        x = self._rolling_state(theta, phi, thetad, phid, speed)
-        return x, np.array([speed, heading])
-
-    def _rolling_state(self, theta, phi, thetad, phid, speed):
-        """State at the origin rolling at `speed` with the given angles and rates."""
-        psid = -speed / self._radius
-        return np.array(
-            [0, 0, theta, phi, 0, speed * np.sin(phi), speed * np.cos(phi), thetad, phid, psid],
-            dtype=np.float64,
-        )
-
-    def _check_goal(self, goal):
-        lo, hi = SPEED_RANGE
-        if not lo <= goal[0] <= hi:
-            raise ValueError(f"Commanded speed must lie in [{lo}, {hi}] m/s; got {goal[0]}.")
-
-    def _state_from_observation(self, obs):
-        theta = np.arctan2(obs[:, 1], obs[:, 0])
-        phi = np.arctan2(obs[:, 3], obs[:, 2])
-        v = -self._radius * obs[:, 6]
-        z = np.zeros_like(theta)
-        cols = [
-            z,
-            z,
-            theta,
-            phi,
-            z,
-            v * np.sin(phi),
-            v * np.cos(phi),
-            obs[:, 4],
-            obs[:, 5],
-            obs[:, 6],
-        ]
-        return np.stack(cols, axis=1)
-
-    def _goal_from_observation(self, obs):
-        return np.stack([obs[:, 7], np.arctan2(obs[:, 9], obs[:, 8])], axis=1)
-
-    def _operating_state(self, goal, x):
-        """Upright straight rolling at v* along phi*: a steady motion (theta = pi/2,
-        phi' = 0, psi' = -v*/r, cyclic coordinates 0)."""
-        speed, heading = goal[:, 0], goal[:, 1]
-        z = np.zeros_like(speed)
-        cols = [z, z, z + np.pi / 2, heading, z, speed * np.sin(heading), speed * np.cos(heading)]
-        return np.stack(cols + [z, z, -speed / self._radius], axis=1)
-
-    def _operating_input(self, x0):
-        """Upright straight rolling needs no torque."""
-        return np.zeros(x0.shape[:-1] + (self.system.n_u,))
-
-    def _draw(self, surface, x, goal, history):
-        track = None if history is None else [(h[0], h[1]) for h in history]
-        rendering.draw_disk(surface, x, goal, self._radius, track)
+def success(x, a, g, p):
+    speed_ok = np.abs(-p.r * x[:, 9] - g[:, 0]) < SPEED_TOLERANCE
+    heading_ok = np.abs(wrap(x[:, 3] - g[:, 1])) < HEADING_TOLERANCE
+    return speed_ok & heading_ok & (np.abs(x[:, 2] - 0.5 * np.pi) <= LEAN_LIMIT)
 
 
-class RollingDiskVectorEnv(LagrangianVectorEnv):
-    """`RollingDiskEnv` copies stepped in one batched call (see `LagrangianVectorEnv`)."""
+def failure(x, a, g, p):
+    return np.abs(x[:, 2] - 0.5 * np.pi) > LEAN_LIMIT
 
-    env_class = RollingDiskEnv
+
+def rolling_state(theta, phi, thetad, phid, speed, radius):
+    """States at the origin rolling at `speed` with the given angles and rates (arrays)."""
+    z = np.zeros_like(speed)
+    cols = [z, z, theta, phi, z, speed * np.sin(phi), speed * np.cos(phi), thetad, phid]
+    return np.stack(cols + [-speed / radius], axis=-1)
+
+
+def start(rng, p):
+    speed = rng.uniform(*SPEED_RANGE)
+    heading = rng.uniform(-np.pi, np.pi)
+    phi = heading + rng.uniform(-np.pi / 4, np.pi / 4)
+    theta = np.pi / 2 + rng.uniform(-0.05, 0.05)
+    thetad, phid = rng.uniform(-0.1, 0.1, 2)
+    return rolling_state(theta, phi, thetad, phid, speed, p.r), np.array([speed, heading])
+
+
+def upright_rolling(g, x, system):
+    """Upright straight rolling at v* along phi*: a steady motion (theta = pi/2, phi' = 0,
+    psi' = -v*/r, cyclic coordinates 0); it needs no torque."""
+    z = np.zeros(len(g))
+    return rolling_state(z + np.pi / 2, g[:, 1], z, z, g[:, 0], system.parameters["r"])
+
+
+def spin_limit(p):
+    return SPIN_RATE_LIMIT
+
+
+def draw(surface, x, g, p, history):
+    track = None if history is None else [(h[0], h[1]) for h in history]
+    rendering.draw_disk(surface, x, g, p.r, track)
+
+
+TASK = Task(
+    name="RollingDisk",
+    model="rolling_disk",
+    actuated=("tau_drive", "tau_steer"),
+    max_input=(0.5, 0.1),
+    observation=(
+        Angle("theta"),
+        Angle("phi"),
+        Value("theta_dot", unit="rad/s"),
+        Value("phi_dot", unit="rad/s"),
+        Value("psi_dot", unit="rad/s"),
+        Value("v*"),
+        Angle("phi*"),
+    ),
+    reward=reward,
+    terms=(
+        Term("alive", 1.0, 1.0, "1 per step"),
+        Term("speed", -4.0, 0.0, "-(v - v*)^2, at most 4"),
+        Term("heading", -(np.pi**2), 0.0, "-(phi - phi*)^2"),
+        Term("lean", -(LEAN_LIMIT**2), 0.0, "-(theta - pi/2)^2"),
+        Term("effort", -0.002, 0.0, "-0.001 |action|^2"),
+    ),
+    success=success,
+    failure=failure,
+    goal=(
+        Goal("v*", "m/s", *SPEED_RANGE, doc="commanded speed"),
+        Goal("phi*", "rad", -np.pi, np.pi, angle=True, doc="commanded heading"),
+    ),
+    start=start,
+    limits={
+        "x_dot": SPEED_LIMIT,
+        "z_dot": SPEED_LIMIT,
+        "theta_dot": TILT_RATE_LIMIT,
+        "phi_dot": TILT_RATE_LIMIT,
+        "psi_dot": spin_limit,
+    },
+    operating_point=upright_rolling,
+    control_period=0.05,
+    substeps=10,
+    max_episode_steps=400,
+    # the cyclic x, z, psi and the constrained x', z' dropped (dynamics.disk_stability);
+    # >= 99 % success up to 1.6x this region (failures below the self-stable 0.99 m/s)
+    lqr=LQRHints(
+        states=("theta", "phi", "theta_dot", "phi_dot", "psi_dot"),
+        scales={"theta": 0.05, "phi": 1.0, "psi_dot": 0.3},
+        region={"theta": 0.02, "phi": 0.2, "theta_dot": 0.1, "phi_dot": 0.1, "psi_dot": 0.5},
+    ),
+    hyperparams={
+        "ppo": {
+            "n_timesteps": 300_000,
+            "n_steps": 512,
+            "gamma": 0.99,
+            "policy_kwargs": {"net_arch": [128, 128], "log_std_init": -1.0},
+        }
+    },
+    draw=draw,
+)

@@ -1,0 +1,132 @@
+"""`LagrangianEnv`: one copy of a task, a thin Gymnasium wrapper around a runtime of one row."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from . import rendering
+from .contract import ContractMixin, horizon, make_runtime, real_array, start_rows
+from .task import Task
+
+
+class LagrangianEnv(ContractMixin, gym.Env):
+    """A Gymnasium env of any `envs.Task` (its docstring documents the task).
+
+    `LagrangianEnv(task, render_mode=None, control_period=None, substeps=None,
+    max_input=None, **model_parameters)`: the task's defaults unless given. Registering a
+    task is one call::
+
+        gymnasium.register("MyNS/CartPole-v0", entry_point="envs:LagrangianEnv",
+                           vector_entry_point="envs:LagrangianVectorEnv",
+                           kwargs={"task": TASK}, max_episode_steps=TASK.max_episode_steps)
+
+    `info` carries the physical state, the applied model inputs, the energy, the reward
+    terms (clipped into their bounds), `is_success`, `diverged` and, for constrained
+    models, the constraint residual.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"]}
+    _single = True
+
+    def __init__(self, task: Task, render_mode: str | None = None, **options: Any):
+        self._rt = make_runtime(task, 1, options)
+        lay = self._rt.layout
+        fps = max(1, round(1.0 / self._rt.control_period))
+        self.metadata = {**type(self).metadata, "render_fps": fps}
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}."
+            )
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, (len(lay.actuated),), np.float32)
+        self.observation_space = spaces.Box(
+            lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
+        )
+        self._ready = False
+        self._viewer: rendering.Viewer | None = None
+        self._history: list[np.ndarray] = []
+
+    def __repr__(self) -> str:
+        return f"<LagrangianEnv {self.task.name} on {self.system.name}>"
+
+    # ---- Gymnasium API ---------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        x, g = start_rows(self._rt.layout, [self.np_random], options, [0], None)
+        self._rt.reset_rows([0], x, g)
+        self._ready = True
+        self._history = []
+        if self.render_mode == "human":
+            self.render()
+        return self._rt.O[0].copy(), self._info(reset=True)
+
+    def step(self, action):
+        if not self._ready:
+            raise RuntimeError("Call reset() before step().")
+        a = real_array(action, "action")
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"Expected action of shape {self.action_space.shape}, got {a.shape}.")
+        if not np.isfinite(a).all():
+            raise ValueError(f"Action contains NaN or inf: {action!r}.")
+        rt = self._rt
+        diverged = rt.step(a.reshape(1, -1), horizon(self, self.task))
+        terminated = bool(rt.terminated[0])
+        info = self._info(diverged=diverged)
+        if self.render_mode == "human":
+            self.render()
+        return rt.O[0].copy(), float(rt.R[0]), terminated, False, info
+
+    def _info(self, reset: bool = False, diverged: bool = False) -> dict[str, Any]:
+        rt = self._rt
+        info: dict[str, Any] = {
+            "state": rt.X[0].copy(),
+            "input": rt.U[0].copy(),
+            "energy": float(rt.energy()[0]),
+        }
+        if reset:
+            info["goal"] = rt.G[0].copy()
+        else:
+            info["reward_terms"] = rt.reward_terms(0)
+            info["is_success"] = bool(rt.success[0])
+            info["diverged"] = diverged
+        if self.system.n_c:
+            info["constraint_residual"] = rt.constraint_residual()[0]
+        return info
+
+    # ---- rendering -------------------------------------------------------------------------
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() was called without a render_mode; pass render_mode='rgb_array' "
+                "or 'human' to gymnasium.make."
+            )
+            return None
+        if self._viewer is None:
+            self._viewer = rendering.Viewer(self.render_mode, self.metadata["render_fps"])
+        x, g = self._rt.rows()[0].copy(), self._rt.G[0].copy()
+        self._history.append(x)
+        return self._viewer.show(lambda surface: draw(self, surface, x, g, self._history))
+
+    def close(self):
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_viewer"] = None  # a pygame window does not travel
+        return state
+
+
+def draw(env, surface, x, g, history) -> None:
+    """One frame: the task's `draw`, or the generic dials and sliders."""
+    task = env.task
+    if task.draw is not None:
+        task.draw(surface, x, g, env.layout.p, history)
+    else:
+        rendering.draw_generic(surface, x, env.layout)

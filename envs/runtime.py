@@ -1,0 +1,281 @@
+"""The batched runtime: N rows of one task on one compiled system.
+
+`Runtime` owns the state, goal, input and result arrays of N copies and offers two
+operations, `reset_rows` (chosen rows to given states and goals) and `step` (every row by
+one control period). The single env is a runtime of one row and the native vector env one
+of N rows, each a thin Gymnasium wrapper; nothing else touches these arrays.
+
+Per step: clip and scale the actions, RK4 through the compiled system, check every row for
+divergence, then evaluate the task on the post-step state: the observation (one kernel for
+the declared features, then each derived feature), the reward terms (clipped into their
+declared bounds and summed), success and failure. A row that fails or diverges terminates,
+and its reward carries the early-end penalty of `envs.task.Task`.
+
+The task's own functions are compiled with numba here when numba can type them, and called
+as plain Python otherwise (a warning says so once per function).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+from numba import njit
+
+from .layout import Layout
+
+_COMPILED: dict = {}
+
+
+def compile_task_function(fn, args):
+    """`fn` compiled with numba (cached on disk when its module allows), or `fn` itself
+    when numba cannot type it; `args` is a sample call used to find out."""
+    key = (fn, tuple(type(a) for a in args))
+    if key in _COMPILED:
+        return _COMPILED[key]
+    import numba
+
+    compiled = fn
+    errors = []
+    for cache in (True, False):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", numba.NumbaWarning)
+                jitted = numba.njit(cache=cache)(fn)
+                jitted(*args)
+            compiled = jitted
+            break
+        except Exception as exc:  # numba's typing errors have no common public base
+            errors.append(exc)
+    if compiled is fn:
+        first = str(errors[-1]).strip().splitlines()[0] if errors else ""
+        warnings.warn(
+            f"Task function {getattr(fn, '__qualname__', fn)!r} runs as plain Python (numba "
+            f"could not compile it: {first}). It works, only slower per step.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    _COMPILED[key] = compiled
+    return compiled
+
+
+@njit(cache=True)
+def apply_actions(actions, max_input, actuated, clipped, U) -> bool:
+    """Clip actions to [-1, 1] into `clipped` and scale them into the actuated columns of
+    the input rows U; False (and nothing written) if any action is NaN or inf."""
+    for b in range(actions.shape[0]):
+        for j in range(actions.shape[1]):
+            if not np.isfinite(actions[b, j]):
+                return False
+    for b in range(actions.shape[0]):
+        for j in range(actions.shape[1]):
+            a = min(max(actions[b, j], -1.0), 1.0)
+            clipped[b, j] = a
+            U[b, actuated[j]] = a * max_input[j]
+    return True
+
+
+@njit(cache=True)
+def check_states(X, X_prev, limits, diverged) -> bool:
+    """diverged[b] = some |X[b, i]| > limits[i] or non-finite; a non-finite row is put back
+    to its previous (finite) state. Returns whether any row diverged."""
+    any_bad = False
+    for b in range(X.shape[0]):
+        bad = False
+        finite = True
+        for i in range(X.shape[1]):
+            v = X[b, i]
+            if not np.isfinite(v):
+                finite = False
+                bad = True
+            elif abs(v) > limits[i]:
+                bad = True
+        if not finite:
+            for i in range(X.shape[1]):
+                X[b, i] = X_prev[b, i]
+        diverged[b] = bad
+        any_bad |= bad
+    return any_bad
+
+
+@njit(cache=True)
+def observe(X, G, ops, low, high, out) -> None:
+    """The declared (non-derived) observation columns of every row, clipped to bounds:
+    ops rows are (column, op, source, second source); a source indexes [X | G]."""
+    nx = X.shape[1]
+    for b in range(X.shape[0]):
+        for k in range(ops.shape[0]):
+            col, op, s, s2 = ops[k, 0], ops[k, 1], ops[k, 2], ops[k, 3]
+            v = X[b, s] if s < nx else G[b, s - nx]
+            if op == 0:
+                r = v
+            elif op == 1:
+                r = math.cos(v)
+            elif op == 2:
+                r = math.sin(v)
+            else:
+                w = X[b, s2] if s2 < nx else G[b, s2 - nx]
+                d = v - w
+                r = math.cos(d) if op == 3 else math.sin(d)
+            out[b, col] = min(max(r, low[col]), high[col])
+
+
+@njit(cache=True)
+def finish(terms, low, high, ended, steps_left, lowest, rewards) -> None:
+    """Clip each reward term into its bounds, sum them, and add the early-end penalty
+    steps_left * min(0, lowest) to the rows that ended early."""
+    penalty = min(0.0, lowest)
+    for b in range(terms.shape[0]):
+        r = 0.0
+        for k in range(terms.shape[1]):
+            v = min(max(terms[b, k], low[k]), high[k])
+            terms[b, k] = v
+            r += v
+        if ended[b]:
+            r += steps_left[b] * penalty
+        rewards[b] = r
+
+
+class Runtime:
+    """N rows of a task (see the module docstring). Public arrays are read-only views for
+    wrappers; `reset_rows` and `step` are the only writers."""
+
+    def __init__(self, layout: Layout, n: int, control_period: float, substeps: int):
+        self.layout = layout
+        self.system = s = layout.system
+        self.n = n
+        self.control_period = control_period
+        self.substeps = substeps
+        n_x = s.state_size
+        self.X = np.zeros((n, n_x))
+        self._X_next = np.zeros((n, n_x))
+        self.U = np.zeros((n, s.n_u))
+        self.T = np.zeros(n)
+        self.G = np.zeros((n, len(layout.goal_names)))
+        self.A = np.zeros((n, len(layout.actuated)))  # clipped actions
+        self.O = np.zeros((n, layout.obs_size), dtype=np.float32)
+        self._obs64 = np.zeros((n, layout.obs_size))
+        self.Q = np.zeros((n, len(layout.task.terms)))  # reward terms
+        self.R = np.zeros(n)
+        self.terminated = np.zeros(n, dtype=np.bool_)
+        self.success = np.zeros(n, dtype=np.bool_)
+        self.diverged = np.zeros(n, dtype=np.bool_)
+        self.steps = np.zeros(n, dtype=np.int64)
+        self._E = np.zeros((n, 2))
+        self._C = np.zeros((n, s.n_c))
+        self._Y = np.zeros((n, len(s.output_names)))
+        self._rows_x = np.zeros((n, len(layout.row_names)))
+        self._steps_left = np.zeros(n)
+        self._compile()
+
+    def _compile(self) -> None:
+        lay = self.layout
+        sample = (self._rows_x, self.A, self.G, lay.p)
+        task = lay.task
+        self._reward = compile_task_function(task.reward, sample)
+        self._success = compile_task_function(task.success, sample)
+        self._failure = compile_task_function(task.failure_fn, sample)
+        self._derived = [(col, compile_task_function(fn, sample)) for col, fn in lay.derived]
+
+    # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        for k in ("_reward", "_success", "_failure", "_derived"):
+            state.pop(k)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._compile()
+
+    # ---- the two operations --------------------------------------------------------------
+    def reset_rows(self, rows, x: np.ndarray, g: np.ndarray) -> None:
+        """Put `rows` at states x and goals g (time 0, no input), and evaluate them."""
+        self.X[rows] = x
+        self.G[rows] = g
+        self.T[rows] = 0.0
+        self.U[rows] = 0.0
+        self.A[rows] = 0.0
+        self.steps[rows] = 0
+        self.diverged[rows] = False
+        self.terminated[rows] = False
+        self.success[rows] = False
+        self.Q[rows] = 0.0
+        self.R[rows] = 0.0
+        lay = self.layout
+        x, g, a = self.rows()[rows], self.G[rows], self.A[rows]
+        obs = np.zeros((len(x), lay.obs_size))
+        observe(x, g, lay.ops, lay.obs_low, lay.obs_high, obs)
+        for col, fn in self._derived:
+            obs[:, col] = fn(x, a, g, lay.p)
+        np.clip(obs, lay.obs_low, lay.obs_high, out=obs)
+        self._obs64[rows] = obs
+        self.O[rows] = obs
+
+    def step(self, actions: np.ndarray, horizon: int | None) -> bool:
+        """Advance every row one control period under `actions` (N, n_a), finite; the
+        early-end penalty counts the steps left to `horizon` (None: no time limit, no
+        penalty). Returns whether any row diverged."""
+        lay = self.layout
+        if not apply_actions(actions, lay.max_input, lay.actuated, self.A, self.U):
+            raise ValueError("actions contain NaN or inf")
+        self.system.step_unchecked(
+            self.T, self.X, self.U, self.control_period, self.substeps, self._X_next
+        )
+        self.X, self._X_next = self._X_next, self.X
+        self.T += self.control_period
+        self.steps += 1
+        diverged = check_states(self.X, self._X_next, lay.limits, self.diverged)
+        if horizon is None:
+            self._steps_left[:] = 0.0
+        else:
+            np.maximum(horizon - self.steps, 0, out=self._steps_left, casting="unsafe")
+        self._evaluate(self._steps_left)
+        return bool(diverged)
+
+    def _evaluate(self, steps_left: np.ndarray) -> None:
+        lay = self.layout
+        x = self.rows()
+        observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
+        for col, fn in self._derived:
+            self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
+        np.clip(self._obs64, lay.obs_low, lay.obs_high, out=self._obs64)
+        self.O[:] = self._obs64
+        for k, v in enumerate(self._reward(x, self.A, self.G, lay.p)):
+            self.Q[:, k] = v
+        self.success[:] = self._success(x, self.A, self.G, lay.p)
+        self.terminated[:] = self._failure(x, self.A, self.G, lay.p)
+        self.terminated |= self.diverged
+        self.success &= ~self.terminated
+        finish(self.Q, lay.term_low, lay.term_high, self.terminated, steps_left,
+               lay.lowest_reward, self.R)  # fmt: skip
+
+    def rows(self) -> np.ndarray:
+        """The rows the task functions see: the state, then the declared model outputs."""
+        lay = self.layout
+        if not len(lay.output_index):
+            return self.X
+        self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
+        n_x = self.system.state_size
+        self._rows_x[:, :n_x] = self.X
+        self._rows_x[:, n_x:] = self._Y[:, lay.output_index]
+        return self._rows_x
+
+    # ---- diagnostics ---------------------------------------------------------------------
+    def energy(self) -> np.ndarray:
+        """T + V of every row, J."""
+        self.system.energy_terms_unchecked(self.T, self.X, self._E)
+        return self._E.sum(axis=1)
+
+    def constraint_residual(self) -> np.ndarray:
+        """The velocity-constraint residual of every row (N, n_c)."""
+        self.system.constraint_residual_unchecked(self.T, self.X, self._C)
+        return self._C.copy()
+
+    def reward_terms(self, row: int | None = None):
+        """The clipped reward terms, by name: floats of one row, or arrays of every row."""
+        names = [t.name for t in self.layout.task.terms]
+        if row is None:
+            return {k: self.Q[:, i].copy() for i, k in enumerate(names)}
+        return dict(zip(names, self.Q[row].tolist()))
