@@ -2,9 +2,10 @@
 
     python -m agents.check
 
-For every registered Lagrange environment: random, zero torque, the environment's
-heuristic (where it has one), LQR, and an SB3 agent trained at the budget of
-agents/hyperparams/<algo>.yml, each scored on the same seeded episodes. Prints a Markdown
+For each environment (default: the built-in Lagrange envs; any Lagrange env id or
+Gymnasium's module:Env-v0 form): random, zero torque, the task's heuristic (where it
+declares one), LQR, and an SB3 agent trained with the task's algorithm and hyperparameters
+(`agents.hparams`), each scored on the same seeded episodes. Prints a Markdown
 comparison table and writes it, a CSV and plots to runs/check/ (training runs under
 runs/check/train/; a re-run resumes them from their checkpoints, --fresh starts over).
 """
@@ -33,7 +34,7 @@ from .common import (
     set_torch_threads,
     write_text_atomic,
 )
-from .evaluate import BASELINES, HEURISTICS, EvalStats, evaluate
+from .evaluate import BASELINES, EvalStats, evaluate, heuristic_of
 from .train import ALGORITHMS, train
 
 
@@ -56,20 +57,23 @@ def check_env(
     fresh: bool,
     progress: bool,
     log=print,
+    hyperparams: str | Path | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment."""
     algo = algo or hparams.check_algo(env_id)
+    heuristic = heuristic_of(env_id)
     rows = []
     for name in BASELINES:
-        if name == "heuristic" and env_id not in HEURISTICS:
+        if name == "heuristic" and heuristic is None:
             continue
         start = time.perf_counter()
         stats = evaluate(env_id, name, episodes, seed)
-        note = HEURISTICS[env_id][0] if name == "heuristic" else ""
+        note = heuristic.description if name == "heuristic" else ""
         rows.append(Row(env_id, name, stats, time.perf_counter() - start, note))
         log(f"  {name:>9}: {stats.summary()}")
     start = time.perf_counter()
-    budget = timesteps if timesteps is not None else hparams.load(algo, env_id)["n_timesteps"]
+    hp = hparams.load(algo, env_id, hyperparams)
+    budget = timesteps if timesteps is not None else hp["n_timesteps"]
     log(f"  training {algo} for {budget} steps ...")
     result = train(
         env_id,
@@ -78,7 +82,9 @@ def check_env(
         seed=seed,
         run_dir=out / "train" / env_slug(env_id) / f"{algo}_seed{seed}",
         resume=not fresh,
+        overwrite=fresh,
         progress=progress,
+        hyperparams=hyperparams,
     )
     stats = evaluate(env_id, str(result.model_path), episodes, seed)
     note = f"{result.timesteps} steps"
@@ -195,13 +201,14 @@ def run_check(
     timesteps: int | None = None,
     fresh: bool = False,
     progress: bool = True,
+    hyperparams: str | Path | None = None,
 ) -> list[Row]:
     """Check every environment (default: all of `envs.ENV_IDS`); write the report to `out`.
-    algo: the algorithm to train everywhere (default: per env, hyperparams/check.yml)."""
+    algo: the algorithm to train everywhere (default: per env, the task's `algo`)."""
     env_ids = list(env_ids) if env_ids else list(register_envs())
     if not env_ids:
         raise ValueError("No environments to check: the `envs` package registers none.")
-    env_ids = [check_env_id(e) for e in env_ids]
+    env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     start = time.perf_counter()
@@ -209,18 +216,20 @@ def run_check(
     for i, env_id in enumerate(env_ids, 1):
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
-        rows += check_env(env_id, algo, episodes, seed, out, timesteps, fresh, progress, log)
+        rows += check_env(
+            env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams
+        )
     total = time.perf_counter() - start
     table = markdown_table(rows)
     notes = "\n".join(f"- {line}" for line in findings(rows))
-    trained = algo.upper() if algo else "the algorithm of agents/hyperparams/check.yml"
-    yml = f"{algo}.yml" if algo else "<algo>.yml"
+    trained = "; ".join(
+        f"{r.env_id}: {r.agent.upper()} for {r.note}" for r in rows if r.agent not in BASELINES
+    )
     report = (
         f"# Agents on every environment\n\n{episodes} episodes per agent (seeds {seed}.."
-        f"{seed + episodes - 1}), success = the task's criterion at the last step; "
-        f"{trained} at the budget of agents/hyperparams/{yml}"
-        f"{'' if timesteps is None else f' overridden to {timesteps} steps'}. "
-        f"Total wall time {total:.0f} s.\n\n{table}\n\n## Findings\n\n{notes}\n\n"
+        f"{seed + episodes - 1}), success = the task's criterion at the last step. "
+        f"Trained: {trained}. Total wall time {total:.0f} s.\n\n{table}\n\n"
+        f"## Findings\n\n{notes}\n\n"
         f"![comparison](comparison.png)\n"
     )
     write_text_atomic(out / "results.md", report)
@@ -240,11 +249,20 @@ def build_parser() -> argparse.ArgumentParser:
         "baselines, LQR and a short stable-baselines3 training; print a Markdown "
         "comparison and write it with plots to --out.",
     )
-    parser.add_argument("env_ids", nargs="*", help="environments (default: every Lagrange env)")
+    parser.add_argument(
+        "env_ids",
+        nargs="*",
+        help="Lagrange env ids or module:NS/Env-v0 (default: the built-in Lagrange envs)",
+    )
     parser.add_argument(
         "--algo",
         help=f"train this ({', '.join(ALGORITHMS)}) on every env "
-        "(default: per env, agents/hyperparams/check.yml)",
+        "(default: per env, the algorithm its task declares)",
+    )
+    parser.add_argument(
+        "--hyperparams",
+        metavar="FILE",
+        help="YAML overriding the packaged hyperparameters (format of agents/hyperparams/*.yml)",
     )
     parser.add_argument("--episodes", type=positive_int, default=20)
     parser.add_argument("--seed", type=non_negative_int, default=0)
@@ -265,7 +283,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.algo is not None and args.algo not in ALGORITHMS:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGORITHMS)}")
     try:
-        env_ids = [check_env_id(e) for e in args.env_ids]
+        env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
+        if args.hyperparams is not None:
+            for env_id in env_ids or register_envs():
+                hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
     except ValueError as exc:
         parser.error(str(exc))
     run_check(
@@ -277,6 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         args.timesteps,
         args.fresh,
         not args.no_progress,
+        args.hyperparams,
     )
     return 0
 

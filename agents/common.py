@@ -1,7 +1,8 @@
 """Small helpers shared by the training, evaluation and checking programs.
 
-Environment-id checking (with close matches), atomic file writes, torch thread settings
-and argparse types that reject bad budgets with a clear message.
+Environment-id checking (with close matches and Gymnasium's module:Env-v0 form), the
+Lagrange env behind a wrapper, atomic file writes, torch thread settings and argparse types
+that reject bad budgets with a clear message.
 """
 
 from __future__ import annotations
@@ -22,32 +23,77 @@ os.umask(_UMASK)
 DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/agents.py --threads (2 threads is slower)
 
 
+class UserError(ValueError):
+    """A mistake in what the user asked for: command-line programs print its message as
+    one line, without a traceback."""
+
+
 def register_envs() -> tuple[str, ...]:
-    """Import `envs` (which registers the Lagrange environments); return their ids."""
-    try:
-        envs = importlib.import_module("envs")
-    except ModuleNotFoundError as exc:  # only a missing `envs` package is tolerated
-        if exc.name != "envs":
-            raise
-        return ()
-    return tuple(getattr(envs, "ENV_IDS", ()))
+    """Import `envs` (which registers the built-in Lagrange environments); their ids."""
+    import envs
+
+    return envs.ENV_IDS
 
 
-def check_env_id(env_id: str) -> str:
-    """`env_id` if Gymnasium knows it; otherwise a ValueError naming close matches."""
+def check_env_id(env_id: str, lagrange: bool = False) -> str:
+    """The registered id named by `env_id` ('NS/Name-vN', or Gymnasium's 'module:NS/Name-vN',
+    which imports the module that registers it first); UserError naming close matches
+    otherwise. With `lagrange`, the env must also be built on the Lagrange runtime."""
     if not isinstance(env_id, str):
         raise TypeError(f"Environment id must be a string, got {type(env_id).__name__}.")
     register_envs()
-    if env_id in gym.registry:
-        return env_id
-    known = sorted(gym.registry)
-    close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
-    if not close:  # 'TwoLinkArm' should still find 'Lagrange/TwoLinkArm-v0'
-        close = [k for k in known if env_id.lower() in k.lower()][:3]
-    hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
-    ours = register_envs()
-    listing = f" Lagrange environments: {', '.join(ours)}." if ours else ""
-    raise ValueError(f"Unknown environment id {env_id!r}.{hint}{listing}")
+    module, sep, name = env_id.partition(":")
+    if sep:
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            raise UserError(
+                f"Cannot import module {module!r} of {env_id!r} (it should register the env "
+                f"when imported): {exc}."
+            ) from None
+        env_id = name
+    if env_id not in gym.registry:
+        known = sorted(gym.registry)
+        close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
+        if not close:  # 'TwoLinkArm' should still find 'Lagrange/TwoLinkArm-v1'
+            close = [k for k in known if env_id.lower() in k.lower()][:3]
+        hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
+        raise UserError(
+            f"Unknown environment id {env_id!r}.{hint} Lagrange environments: "
+            f"{', '.join(register_envs())}; a system of your own: 'your.module:NS/Name-v0'."
+        )
+    if lagrange:
+        task_of(env_id)
+    return env_id
+
+
+def task_of(env_id: str):
+    """The `envs.Task` of a registered Lagrange env id; UserError for other envs."""
+    import envs
+
+    spec = gym.spec(env_id)
+    task = spec.kwargs.get("task")
+    if not isinstance(task, envs.Task):
+        raise UserError(
+            f"{env_id!r} is not built on the Lagrange runtime, so agents know nothing of its "
+            "physics (operating point, LQR weights, heuristic). Register a system of your "
+            "own as an envs.Task (see docs/new-system.md)."
+        )
+    return task
+
+
+def lagrange_env(env):
+    """The unwrapped Lagrange env (single or vector) of `env`; UserError for other envs."""
+    import envs
+
+    base = env.unwrapped if hasattr(env, "unwrapped") else env
+    if not isinstance(base, (envs.LagrangianEnv, envs.LagrangianVectorEnv)):
+        raise UserError(
+            f"{base!r} is not built on the Lagrange runtime (envs.LagrangianEnv or "
+            "envs.LagrangianVectorEnv), so agents know nothing of its physics. Register a "
+            "system of your own as an envs.Task (see docs/new-system.md)."
+        )
+    return base
 
 
 def set_torch_threads(n: int = DEFAULT_TORCH_THREADS) -> None:

@@ -9,6 +9,7 @@ the first episode through Gymnasium's RecordVideo.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,24 +17,36 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from .common import DEFAULT_TORCH_THREADS, check_env_id, non_negative_int, positive_int
-from .policies import (
-    BeadCascadePolicy,
-    GravityPDPolicy,
-    RandomPolicy,
-    SB3Policy,
-    SwingUpPolicy,
-    ZeroPolicy,
+from .common import (
+    DEFAULT_TORCH_THREADS,
+    UserError,
+    check_env_id,
+    lagrange_env,
+    non_negative_int,
+    positive_int,
+    task_of,
 )
+from .policies import RandomPolicy, SB3Policy, ZeroPolicy
 
 BASELINES = ("random", "zero", "heuristic", "lqr")
-HEURISTICS = {
-    "Lagrange/TwoLinkArm-v0": ("PD + gravity compensation", GravityPDPolicy),
-    "Lagrange/Acrobot-v0": ("energy swing-up + LQR", SwingUpPolicy),
-    "Lagrange/BeadOnRod-v0": ("cascaded PD (ball and beam)", BeadCascadePolicy),
-    "Lagrange/CrankSlider-v0": ("PD + gravity compensation", GravityPDPolicy),
-}
-"""The model-based heuristic of each environment that has one: (description, class)."""
+
+
+def heuristic_of(env_id: str):
+    """The task's `Heuristic` declaration for a Lagrange env id, or None."""
+    try:
+        return task_of(env_id).heuristic
+    except UserError:
+        return None
+
+
+def build_heuristic(env):
+    """The heuristic baseline the env's task declares, built for `env`."""
+    task = lagrange_env(env).task
+    if task.heuristic is None:
+        raise UserError(f"Task {task.name!r} declares no heuristic baseline.")
+    module, _, name = task.heuristic.target.partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    return cls(env, **dict(task.heuristic.kwargs))
 
 
 @dataclass(frozen=True)
@@ -75,14 +88,8 @@ def make_agent(name: str, env, seed: int = 0):
         return RandomPolicy(space, seed)
     if name == "zero":
         return ZeroPolicy(space)
-    env_id = env.spec.id if env.spec is not None else None
     if name == "heuristic":
-        if env_id not in HEURISTICS:
-            raise ValueError(
-                f"No heuristic baseline for {env_id!r}; environments with one: "
-                f"{', '.join(HEURISTICS)}."
-            )
-        return HEURISTICS[env_id][1](env)
+        return build_heuristic(env)
     if name == "lqr":
         from .lqr import LQRPolicy
 
@@ -90,7 +97,7 @@ def make_agent(name: str, env, seed: int = 0):
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
         return SB3Policy.load(path)
-    raise ValueError(
+    raise UserError(
         f"Unknown agent {name!r}: expected one of {', '.join(BASELINES)} or the path of a "
         f"trained model (model.zip or its run directory)."
     )
@@ -111,14 +118,29 @@ def evaluate(
         raise ValueError(f"episodes must be a positive integer, got {episodes}.")
     venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
     try:
-        venv.spec.id = env_id  # the vector env's spec names the registered id
         policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
+        check_policy_fits(policy, venv)
         stats = _run(venv, policy, seed, deterministic)
     finally:
         venv.close()
     if video_dir is not None:
         record_video(env_id, policy, video_dir, seed, deterministic)
     return stats
+
+
+def check_policy_fits(policy, venv) -> None:
+    """UserError when a trained model's spaces differ from the env's (a model trained on
+    another env), before any step is taken."""
+    model = getattr(policy, "model", None)
+    if model is None or not hasattr(model, "observation_space"):
+        return
+    obs, act = venv.single_observation_space, venv.single_action_space
+    if model.observation_space.shape != obs.shape or model.action_space.shape != act.shape:
+        raise UserError(
+            f"The model was trained on observations {model.observation_space.shape} and "
+            f"actions {model.action_space.shape}; {venv.spec.id if venv.spec else 'this env'} "
+            f"has {obs.shape} and {act.shape}: it was trained on another environment."
+        )
 
 
 def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
@@ -160,7 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m agents.evaluate",
         description="Mean and std of the return, success rate and episode length of an agent.",
     )
-    parser.add_argument("env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v0")
+    parser.add_argument(
+        "env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v1, or module:NS/Env-v0"
+    )
     parser.add_argument(
         "--agent",
         required=True,
@@ -188,7 +212,12 @@ def main(argv: list[str] | None = None) -> int:
     from .common import set_torch_threads
 
     set_torch_threads(DEFAULT_TORCH_THREADS)
-    stats = evaluate(env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic)
+    try:
+        stats = evaluate(
+            env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic
+        )
+    except (ValueError, FileNotFoundError) as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
     print(f"{args.agent} on {env_id}: {stats.summary()}")
     if args.video:
         print(f"Video in {args.video}")

@@ -20,16 +20,18 @@ from pathlib import Path
 import numpy as np
 from gymnasium import spaces
 
+from dynamics import wrap
 
-def wrap(a: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (a + np.pi) % (2 * np.pi) - np.pi
+from .common import UserError, lagrange_env
 
 
 class Policy(ABC):
     """Base: batches the observation, calls `act`, clips to the action space [-1, 1]."""
 
     def __init__(self, action_space: spaces.Box):
+        """action_space: the Box of one copy's actions, or an env (single or vector)."""
+        if hasattr(action_space, "action_space"):
+            action_space = getattr(action_space, "single_action_space", action_space.action_space)
         if not isinstance(action_space, spaces.Box):
             raise TypeError(f"Expected a Box action space, got {action_space!r}.")
         self.action_space = action_space
@@ -64,10 +66,6 @@ class ZeroPolicy(Policy):
         return np.zeros((len(obs),) + self.action_space.shape)
 
 
-def _unwrapped(env):
-    return env.unwrapped if hasattr(env, "unwrapped") else env
-
-
 def _single_action_space(env) -> spaces.Box:
     """The action space of one copy (a vector env's `single_action_space`)."""
     return getattr(env, "single_action_space", env.action_space)
@@ -87,10 +85,8 @@ def input_response(system, x: np.ndarray, actuated: list[int]) -> tuple[np.ndarr
 
 
 def _actuated(env) -> list[int]:
-    """Model inputs the action drives (columns of the action scaling)."""
-    n_a = _single_action_space(env).shape[-1]
-    S = env.action_to_input(np.eye(n_a)) - env.action_to_input(np.zeros(n_a))
-    return [int(np.argmax(np.abs(row))) for row in S]
+    """Model inputs the action drives, in action order."""
+    return [int(i) for i in env.layout.actuated]
 
 
 class GravityPDPolicy(Policy):
@@ -103,7 +99,7 @@ class GravityPDPolicy(Policy):
     e is the wrapped error to the goal of each observation."""
 
     def __init__(self, env, omega: float = 4.0, zeta: float = 1.0):
-        self.env = _unwrapped(env)
+        self.env = lagrange_env(env)
         super().__init__(_single_action_space(self.env))
         self.system = self.env.system
         self.actuated = _actuated(self.env)
@@ -149,7 +145,7 @@ class SwingUpPolicy(Policy):
       at most 1.23 N*m for the default arm (below the 3 N*m limit).
     - balance: LQR once its cost-to-go dx' P dx is below `capture_level` (the level set
       from which LQR succeeds in 99 % of 200 random directions for the default acrobot;
-      the CONFIGS box is far smaller because the basin is a thin slab, see agents.lqr).
+      the task's LQR region is far smaller because the basin is a thin slab, see agents.lqr).
     Measured on Lagrange/Acrobot-v0 (3 N*m), 50 episodes: success 20 % (seeds 0-49) and
     16 % (seeds 1000-1049); the energy-only pump it replaces captured none. The other
     episodes keep swinging at about E* without passing through the hand-over set."""
@@ -169,7 +165,7 @@ class SwingUpPolicy(Policy):
     ):
         from .lqr import LQRPolicy
 
-        self.env = _unwrapped(env)
+        self.env = lagrange_env(env)
         super().__init__(_single_action_space(self.env))
         self.system = self.env.system
         if self.system.n_q != 2 or self.system.n_c:
@@ -250,7 +246,7 @@ class BeadCascadePolicy(Policy):
     input response."""
 
     def __init__(self, env, omega_outer: float = 1.5, omega_inner: float = 8.0, max_tilt=0.5):
-        self.env = _unwrapped(env)
+        self.env = lagrange_env(env)
         super().__init__(_single_action_space(self.env))
         self.system = self.env.system
         if self.system.coordinates != ("r", "phi"):
@@ -310,7 +306,7 @@ class SB3Policy:
             except (ValueError, KeyError, TypeError, AttributeError) as exc:
                 errors.append(f"{name}: {exc}")
         if model is None:
-            raise ValueError(f"{path} is not a PPO, SAC or TD3 model ({'; '.join(errors)}).")
+            raise UserError(f"{path} is not a PPO, SAC or TD3 model ({'; '.join(errors)}).")
         stats = path.parent / "vecnormalize.pkl"
         if not stats.exists():
             return cls(model)

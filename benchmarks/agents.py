@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--speed", action="store_true", help="measure threads and env stepping")
     parser.add_argument("--episodes", type=int, default=50)
-    parser.add_argument("--algo", help="train this everywhere (default: check.yml per env)")
+    parser.add_argument("--algo", help="train this everywhere (default: the algorithm each task declares)")
     parser.add_argument("--timesteps", type=int, help="training budget (default: the YAML's)")
     parser.add_argument("--out", default="runs/benchmark")
     args = parser.parse_args(argv)

@@ -25,18 +25,19 @@ uniform disk (I = m r^2 / 4, J = m r^2 / 2) that is Omega^2 > g / (3 r). The sig
 those of this package's rolling_disk model (its A matrix reads them off); `critical_spin`
 finds the same boundary numerically from the exact Jacobians, without this formula.
 
-    python -m agents.disk_stability --plot disk_stability.png
+    python -m dynamics.disk_stability --plot disk_stability.png
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 
 import numpy as np
 from scipy.optimize import brentq
 
-from .lqr import linearize, save_figure
+from .cache import write_atomic
 
 LEAN_STATES = ("theta", "theta_dot", "phi_dot")
 """The reduced state whose stability decides upright rolling."""
@@ -73,8 +74,16 @@ def upright_rolling(system, spin: float, heading: float = 0.0) -> np.ndarray:
 
 def lean_matrix(system, spin: float) -> np.ndarray:
     """A of the lean-heading subsystem (theta, theta', phi') at upright rolling with spin
-    `spin`, from the exact Jacobians (the reduction is checked to be exact)."""
-    return linearize(system, upright_rolling(system, spin), None, LEAN_STATES).A
+    `spin`, from the exact Jacobians; the reduction is exact (checked: no dropped
+    component drives a kept one)."""
+    A, _ = system.linearize(upright_rolling(system, spin))
+    names = list(system.coordinates) + [f"{c}_dot" for c in system.coordinates]
+    keep = [names.index(s) for s in LEAN_STATES]
+    dropped = [i for i in range(len(names)) if i not in keep]
+    coupling = np.abs(A[np.ix_(keep, dropped)]).max()
+    if coupling > 1e-10 * max(np.abs(A).max(), 1.0):
+        raise ValueError(f"The lean subsystem is coupled to the dropped states ({coupling:.3g}).")
+    return A[np.ix_(keep, keep)]
 
 
 def lean_eigenvalues(system, spins) -> np.ndarray:
@@ -186,7 +195,9 @@ def plot(system, path: str, margin: float = 0.05) -> None:
     ax2.set_title(f"Unforced rolling after a lean-rate kick of {KICK} rad/s")
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    save_figure(fig, path)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
+    write_atomic(path, buffer.getvalue())
     plt.close(fig)
 
 
@@ -225,7 +236,7 @@ def report(system, margin: float = 0.05) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.disk_stability",
+        prog="python -m dynamics.disk_stability",
         description="Self-stability of upright rolling: eigenvalues vs spin rate, critical "
         "speed from the exact linearisation vs the classical formula, nonlinear checks.",
     )

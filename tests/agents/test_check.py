@@ -9,11 +9,11 @@ from agents.check import main, run_check
 
 def test_check_writes_the_comparison(tmp_path, capsys):
     rows = run_check(
-        ["Lagrange/CrankSlider-v0"], episodes=2, out=tmp_path, timesteps=256, progress=False
+        ["Lagrange/CrankSlider-v1"], episodes=2, out=tmp_path, timesteps=256, progress=False
     )
     assert [r.agent for r in rows] == ["random", "zero", "heuristic", "lqr", "ppo"]
     out = capsys.readouterr().out
-    assert "| Lagrange/CrankSlider-v0 | lqr |" in out and "LQR" in out
+    assert "| Lagrange/CrankSlider-v1 | lqr |" in out and "LQR" in out
     for name in ("results.md", "results.csv", "comparison.png"):
         assert (tmp_path / name).stat().st_size > 0
     report = (tmp_path / "results.md").read_text()
@@ -22,7 +22,7 @@ def test_check_writes_the_comparison(tmp_path, capsys):
     assert len(csv_lines) == 1 + len(rows)
     # a second run resumes the finished training instead of repeating it
     again = run_check(
-        ["Lagrange/CrankSlider-v0"], episodes=2, out=tmp_path, timesteps=256, progress=False
+        ["Lagrange/CrankSlider-v1"], episodes=2, out=tmp_path, timesteps=256, progress=False
     )
     assert again[-1].stats.returns.tolist() == rows[-1].stats.returns.tolist()
 
@@ -30,7 +30,7 @@ def test_check_writes_the_comparison(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv, message",
     [
-        (["Lagrange/CrankSlide-v0"], "Did you mean 'Lagrange/CrankSlider-v0'"),
+        (["Lagrange/CrankSlide-v1"], "Did you mean 'Lagrange/CrankSlider-v1'"),
         (["--algo", "a2c"], "unknown algorithm 'a2c'"),
         (["--timesteps", "-1"], "expected a positive integer, got -1"),
     ],

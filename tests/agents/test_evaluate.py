@@ -10,7 +10,7 @@ from agents.evaluate import evaluate, main, make_agent
 
 
 def test_batched_evaluation_counts_each_episode_like_a_single_env():
-    env_id, seed = "Lagrange/BeadOnRod-v0", 3
+    env_id, seed = "Lagrange/BeadOnRod-v1", 3
     stats = evaluate(env_id, "lqr", episodes=3, seed=seed)
     env = gym.make(env_id)
     policy = make_agent("lqr", env)
@@ -27,14 +27,14 @@ def test_batched_evaluation_counts_each_episode_like_a_single_env():
 
 
 def test_bead_leaving_the_rod_ends_zero_torque_episodes_early():
-    stats = evaluate("Lagrange/BeadOnRod-v0", "zero", episodes=5)
+    stats = evaluate("Lagrange/BeadOnRod-v1", "zero", episodes=5)
     assert stats.mean_length < 200 and stats.success_rate == 0.0
     assert np.isfinite(stats.returns).all()
 
 
 def test_video_of_the_first_episode(tmp_path):
     pytest.importorskip("moviepy")
-    evaluate("Lagrange/CrankSlider-v0", "heuristic", episodes=1, video_dir=tmp_path / "videos")
+    evaluate("Lagrange/CrankSlider-v1", "heuristic", episodes=1, video_dir=tmp_path / "videos")
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
 
@@ -42,10 +42,10 @@ def test_video_of_the_first_episode(tmp_path):
 @pytest.mark.parametrize(
     "argv, message",
     [
-        (["Lagrange/Acrobat-v0", "--agent", "zero"], "Did you mean 'Lagrange/Acrobot-v0'"),
-        (["Lagrange/Acrobot-v0", "--agent", "pid"], "unknown agent 'pid'"),
-        (["Lagrange/Acrobot-v0", "--agent", "zero", "--episodes", "0"], "got 0"),
-        (["Lagrange/Acrobot-v0"], "--agent"),
+        (["Lagrange/Acrobat-v1", "--agent", "zero"], "Did you mean 'Lagrange/Acrobot-v1'"),
+        (["Lagrange/Acrobot-v1", "--agent", "pid"], "unknown agent 'pid'"),
+        (["Lagrange/Acrobot-v1", "--agent", "zero", "--episodes", "0"], "got 0"),
+        (["Lagrange/Acrobot-v1"], "--agent"),
     ],
 )
 def test_cli_rejects_bad_arguments(argv, message, capsys):
@@ -55,10 +55,10 @@ def test_cli_rejects_bad_arguments(argv, message, capsys):
 
 
 def test_cli_prints_the_scores(capsys):
-    assert main(["Lagrange/CrankSlider-v0", "--agent", "lqr", "--episodes", "2"]) == 0
-    assert "lqr on Lagrange/CrankSlider-v0: return" in capsys.readouterr().out
+    assert main(["Lagrange/CrankSlider-v1", "--agent", "lqr", "--episodes", "2"]) == 0
+    assert "lqr on Lagrange/CrankSlider-v1: return" in capsys.readouterr().out
 
 
 def test_evaluate_rejects_a_non_positive_episode_count():
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
-        evaluate("Lagrange/CrankSlider-v0", "zero", episodes=0)
+        evaluate("Lagrange/CrankSlider-v1", "zero", episodes=0)

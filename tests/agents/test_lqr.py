@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 import dynamics
-from agents import lqr
+from agents import closed_loop, linear, lqr, lqr_cli
+from agents.policies import ZeroPolicy
+from envs import acrobot
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +74,7 @@ def test_arm_linearisation_at_rest_equals_book_726(arm):
     M = np.array([[I_prime, A_], [A_, I2]])  # (7.26): M q'' + K q = Q
     K = np.diag([B_, C_])
     Q_of_M = np.array([[1.0, -1.0], [0.0, 1.0]])  # Q1 = M1 - M2, Q2 = M2 (joint motors)
-    lin = lqr.linearize(arm, np.zeros(4), np.zeros(2))
+    lin = linear.linearize(arm, np.zeros(4), np.zeros(2))
     # same numbers through two routes (symbolic Jacobian vs a 2x2 solve): round-off only
     np.testing.assert_allclose(lin.A[2:, :2], -np.linalg.solve(M, K), rtol=1e-12)
     np.testing.assert_allclose(lin.A[2:, 2:], 0.0, atol=1e-12)
@@ -87,9 +89,9 @@ def test_arm_linearisation_at_rest_equals_book_726(arm):
 def test_zoh_discretisation_is_the_exact_flow_of_the_linear_system(arm):
     from scipy.integrate import solve_ivp
 
-    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    lin = linear.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
     dt, x, u = 0.05, np.array([0.01, -0.02, 0.03, 0.0]), np.array([0.3, -0.1])
-    Ad, Bd = lqr.discretize(lin.A, lin.B, dt)
+    Ad, Bd = linear.discretize(lin.A, lin.B, dt)
     sol = solve_ivp(lambda t, y: lin.A @ y + lin.B @ u, (0, dt), x, rtol=1e-12, atol=1e-14)
     # DOP853/RK45 at rtol 1e-12 on |x| ~ 0.05: errors ~1e-13
     np.testing.assert_allclose(Ad @ x + Bd @ u, sol.y[:, -1], atol=1e-11)
@@ -98,8 +100,8 @@ def test_zoh_discretisation_is_the_exact_flow_of_the_linear_system(arm):
 @pytest.mark.parametrize("inputs", [(0, 1), (1,)])  # both motors; the acrobot's elbow only
 def test_gain_equals_python_control_dlqr(arm, inputs):
     control = pytest.importorskip("control")
-    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
-    Ad, Bd = lqr.discretize(lin.A, lin.B[:, inputs], 0.05)
+    lin = linear.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    Ad, Bd = linear.discretize(lin.A, lin.B[:, inputs], 0.05)
     Q, R = np.diag([3.0, 1.0, 0.2, 0.1]), np.eye(len(inputs)) * 0.5
     K, P = lqr.dlqr(Ad, Bd, Q, R)
     K_ref, P_ref, _ = control.dlqr(Ad, Bd, Q, R)
@@ -111,8 +113,8 @@ def test_gain_equals_python_control_dlqr(arm, inputs):
 
 def test_riccati_cost_is_the_closed_loop_cost(arm):
     # the value function: x0' P x0 = sum over k of x'Qx + u'Ru along the closed loop
-    lin = lqr.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
-    Ad, Bd = lqr.discretize(lin.A, lin.B[:, 1:], 0.05)
+    lin = linear.linearize(arm, [np.pi, np.pi, 0, 0], [0, 0])
+    Ad, Bd = linear.discretize(lin.A, lin.B[:, 1:], 0.05)
     Q, R = np.eye(4), np.eye(1)
     K, P = lqr.dlqr(Ad, Bd, Q, R)
     x0 = x = np.array([0.02, -0.01, 0.0, 0.05])
@@ -131,10 +133,10 @@ def test_disk_at_rest_is_uncontrollable_and_the_error_names_the_lean(disk):
     keep = ("theta", "phi", "theta_dot", "phi_dot", "psi_dot")
     at_rest = np.zeros(10)
     at_rest[2] = np.pi / 2
-    lin = lqr.linearize(disk, at_rest, [0, 0], keep)
-    with pytest.raises(lqr.UncontrollableError, match=r"rank 3 of 5.*5\.11.*theta 1\.00"):
+    lin = linear.linearize(disk, at_rest, [0, 0], keep)
+    with pytest.raises(linear.UncontrollableError, match=r"rank 3 of 5.*5\.11.*theta 1\.00"):
         lqr.design(lin, 0.05, np.ones(5), np.ones(2))
-    c = lqr.controllability(lin.A, lin.B, lin.states)
+    c = linear.controllability(lin.A, lin.B, lin.states)
     assert not c.controllable and c.condition == np.inf and len(c.unreachable) == 2
 
 
@@ -143,8 +145,8 @@ def test_disk_rolling_is_controllable_from_the_steering_torque_alone(disk):
     keep = ("theta", "phi", "theta_dot", "phi_dot")
     x0 = np.zeros(10)
     x0[2], x0[6], x0[9] = np.pi / 2, 2.4, -8.0  # z' = -r psi' cos(0)
-    lin = lqr.linearize(disk, x0, [0, 0], keep)
-    c = lqr.controllability(lin.A, lin.B[:, 1:], lin.states)
+    lin = linear.linearize(disk, x0, [0, 0], keep)
+    c = linear.controllability(lin.A, lin.B[:, 1:], lin.states)
     assert c.controllable and np.isfinite(c.condition)
 
 
@@ -152,22 +154,22 @@ def test_dropping_a_coupled_state_is_refused(disk):
     x0 = np.zeros(10)
     x0[2], x0[6], x0[9] = np.pi / 2, 2.4, -8.0
     with pytest.raises(ValueError, match="Cannot drop 'phi_dot': it drives 'theta_dot'"):
-        lqr.linearize(disk, x0, [0, 0], ("theta", "theta_dot"))
+        linear.linearize(disk, x0, [0, 0], ("theta", "theta_dot"))
     with pytest.raises(ValueError, match="Unknown state components"):
-        lqr.linearize(disk, x0, [0, 0], ("theta", "lean"))
+        linear.linearize(disk, x0, [0, 0], ("theta", "lean"))
 
 
 def test_bad_weights_and_periods_are_refused():
     A, B = np.array([[0.0, 1.0], [2.0, 0.0]]), np.array([[0.0], [1.0]])
-    Ad, Bd = lqr.discretize(A, B, 0.1)
+    Ad, Bd = linear.discretize(A, B, 0.1)
     with pytest.raises(ValueError, match=r"Q must be \(2, 2\) or a diagonal of length 2"):
         lqr.dlqr(Ad, Bd, np.ones(3), [1.0])
     with pytest.raises(ValueError, match="R must be positive definite"):
         lqr.dlqr(Ad, Bd, np.ones(2), [0.0])
     with pytest.raises(ValueError, match="dt must be a positive"):
-        lqr.discretize(A, B, -0.1)
+        linear.discretize(A, B, -0.1)
     with pytest.raises(ValueError, match=r"B must have shape \(2, m\)"):
-        lqr.controllability(A, np.ones((3, 1)))
+        linear.controllability(A, np.ones((3, 1)))
 
 
 # ---- closed loops on the environments ------------------------------------------------
@@ -178,12 +180,12 @@ envs = pytest.importorskip("envs")
 @pytest.mark.parametrize("env_id", envs.ENV_IDS)
 def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
     # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
-    # within lqr.CONFIGS[env_id].region, at most 1/1.6 of the largest region with >= 99 %
-    # success measured by lqr.largest_region (see CONFIGS), so the issue's 99 % bar holds
+    # within the task's LQR region, at most 1/1.6 of the largest region with >= 99 %
+    # success measured by closed_loop.largest_region (see the task's LQRHints), so the issue's 99 % bar holds
     # with a margin rather than by the luck of the seed
-    lqr_run = lqr.evaluate_near(env_id, episodes=100, seed=0)
+    lqr_run = closed_loop.evaluate_near(env_id, episodes=100, seed=0)
     assert lqr_run.success_rate >= 0.99, lqr_run.success_rate
-    zero = lqr.evaluate_near(env_id, lqr.ZeroPolicy, episodes=100, seed=0)
+    zero = closed_loop.evaluate_near(env_id, ZeroPolicy, episodes=100, seed=0)
     assert zero.success_rate <= 0.2, zero.success_rate  # unforced: falls / drifts away
     assert lqr_run.returns.mean() > zero.returns.mean()
 
@@ -193,18 +195,18 @@ def test_policy_scores_with_sb3_evaluate_policy():
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.monitor import Monitor
 
-    env = Monitor(gym.make("Lagrange/TwoLinkArm-v0"))
+    env = Monitor(gym.make("Lagrange/TwoLinkArm-v1"))
     policy = lqr.LQRPolicy(env)
     # the fully actuated arm from its own start distribution (any start, any goal)
     mean, _ = evaluate_policy(policy, env, n_eval_episodes=3, deterministic=True)
-    zero, _ = evaluate_policy(lqr.ZeroPolicy(env), env, n_eval_episodes=3)
+    zero, _ = evaluate_policy(ZeroPolicy(env), env, n_eval_episodes=3)
     assert mean > zero
 
 
 def test_predict_is_batched_and_saturates():
     import gymnasium as gym
 
-    env = gym.make("Lagrange/Acrobot-v0")
+    env = gym.make("Lagrange/Acrobot-v1")
     obs, _ = env.reset(seed=0, options={"state": [np.pi + 0.3, np.pi - 0.2, 0.0, 0.0]})
     policy = lqr.LQRPolicy(env)
     one, state = policy.predict(obs)
@@ -217,7 +219,7 @@ def test_predict_is_batched_and_saturates():
 def test_policy_acts_on_the_goal_in_the_observation():
     import gymnasium as gym
 
-    env = gym.make("Lagrange/TwoLinkArm-v0")
+    env = gym.make("Lagrange/TwoLinkArm-v1")
     obs, _ = env.reset(seed=3, options={"goal": [0.5, -1.0]})
     policy = lqr.LQRPolicy(env)
     x0, u0 = env.unwrapped.operating_point()
@@ -231,18 +233,18 @@ def test_policy_acts_on_the_goal_in_the_observation():
 def test_uncontrollable_env_setup_is_reported(capsys):
     import gymnasium as gym
 
-    env = gym.make("Lagrange/RollingDisk-v0")
+    env = gym.make("Lagrange/RollingDisk-v1")
     env.reset(seed=0)
     policy = lqr.LQRPolicy(env)
     x0, u0 = env.unwrapped.operating_point()
     x0[[5, 6, 9]] = 0.0  # the disk standing still: the lean cannot be reached
-    with pytest.raises(lqr.UncontrollableError, match="theta 1.00"):
+    with pytest.raises(linear.UncontrollableError, match="theta 1.00"):
         policy.design(x0, u0)
 
 
 def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
     out = tmp_path / "bead.png"
-    assert lqr.main(["Lagrange/BeadOnRod-v0", "--episodes", "10", "--plot", str(out)]) == 0
+    assert lqr_cli.main(["Lagrange/BeadOnRod-v1", "--episodes", "10", "--plot", str(out)]) == 0
     text = capsys.readouterr().out
     for part in (
         "A (continuous",
@@ -260,25 +262,25 @@ def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
 
 def test_command_line_rejects_unknown_env(capsys):
     with pytest.raises(SystemExit):
-        lqr.main(["Lagrange/Acrobat-v0"])
-    assert "Did you mean 'Lagrange/Acrobot-v0'" in capsys.readouterr().err
+        lqr_cli.main(["Lagrange/Acrobat-v1"])
+    assert "Did you mean 'Lagrange/Acrobot-v1'" in capsys.readouterr().err
 
 
 def test_acrobot_box_region_is_bounded_by_what_any_3_nm_controller_can_recover():
     # With |a| <= 1, each unstable real mode z = w'dx of the linearisation obeys
     # z' = lam z + (w'B) a, so no controller recovers from |z| >= |w'B| / lam. The slow
     # mode (lam ~ 2.7 1/s, mostly the whole arm leaning) makes this a thin slab: the
-    # CONFIGS box at the measured 1.75x lies inside it, while at 16x half the box lies
+    # task's box at the measured 1.75x lies inside it, while at 16x half the box lies
     # outside, so the acrobot's small box is the 3 N*m limit, not the LQR weights.
     import gymnasium as gym
 
-    env = gym.make("Lagrange/Acrobot-v0")
+    env = gym.make("Lagrange/Acrobot-v1")
     env.reset(seed=0)
     d = lqr.LQRPolicy(env).design()
     lam, W = np.linalg.eig(d.linear.A.T)
     unstable = [k for k in range(len(lam)) if lam[k].real > 0]
     assert len(unstable) == 2 and np.allclose(lam[unstable].imag, 0)
-    half = np.array([lqr.CONFIGS["Lagrange/Acrobot-v0"].region[s] for s in d.linear.states])
+    half = np.array([acrobot.TASK.lqr.region[s] for s in d.linear.states])
     rng = np.random.default_rng(0)
     for scale, inside in ((1.75, 1.0), (16.0, 0.6)):
         dx = rng.uniform(-1, 1, (20000, 4)) * scale * half

@@ -11,17 +11,23 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 import envs  # noqa: F401  (registers the Lagrange ids)
 from agents.vecenv import GymnasiumVecEnv, make_sb3_vec_env, supports_native
 
-ENV_ID = "Lagrange/BeadOnRod-v0"  # zero torque: the bead leaves the rod within ~20 steps
+ENV_ID = "Lagrange/BeadOnRod-v1"  # zero torque: the bead leaves the rod within ~20 steps
 
 
-def test_adapter_steps_like_dummy_vec_env_through_episode_ends():
+@pytest.mark.parametrize("vectorization", ["sync", "native"])
+def test_adapter_steps_like_dummy_vec_env_through_episode_ends(vectorization):
     n = 3
-    same_step = gym.make_vec(
-        ENV_ID,
-        num_envs=n,
-        vectorization_mode="sync",
-        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP},
-    )
+    if vectorization == "sync":
+        same_step = gym.make_vec(
+            ENV_ID,
+            num_envs=n,
+            vectorization_mode="sync",
+            vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP},
+        )
+    else:  # the runtime's own vector env, one batched step for every copy
+        same_step = gym.make_vec(
+            ENV_ID, n, vectorization_mode="vector_entry_point", autoreset_mode="SameStep"
+        )
     adapted = GymnasiumVecEnv(same_step)
     dummy = DummyVecEnv([lambda: gym.make(ENV_ID) for _ in range(n)])
     adapted.seed(7)
@@ -49,11 +55,10 @@ def test_adapter_steps_like_dummy_vec_env_through_episode_ends():
 
 def test_adapter_refuses_next_step_autoreset():
     venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
-    if venv.metadata.get("autoreset_mode") == AutoresetMode.SAME_STEP:
-        pytest.skip("this env's native vector env autoresets in the same step")
+    assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP  # Gymnasium's default
     with pytest.raises(ValueError, match="SAME_STEP"):
         GymnasiumVecEnv(venv)
-    assert not supports_native(ENV_ID)
+    assert supports_native(ENV_ID)  # asked for, the native env autoresets in the same step
 
 
 def test_auto_vectorization_gives_sb3_a_working_vec_env():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import dynamics
-from agents import disk_stability as ds
+from dynamics import disk_stability as ds
 
 
 @pytest.fixture(scope="module")

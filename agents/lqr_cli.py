@@ -1,0 +1,183 @@
+"""`python -m agents.lqr ENV_ID`: an LQR design printed (A, B, eigenvalues, controllability,
+gain), scored in closed loop against zero torque, and its response plotted."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import gymnasium as gym
+import numpy as np
+
+from .closed_loop import evaluate_near, expected_region, largest_region, perturbed_starts
+from .common import UserError, atomic_path, check_env_id
+from .linear import UncontrollableError
+from .lqr import LQRDesign, LQRPolicy
+from .policies import ZeroPolicy
+
+
+def save_figure(fig, path: str) -> None:
+    """fig.savefig to `path` atomically (temporary file in the same directory + replace)."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120)
+
+
+def describe(d: LQRDesign) -> str:
+    """A, B, eigenvalues, controllability and gain of a design, as text."""
+    lin = d.linear
+
+    def mat(M, rows, cols):
+        head = " " * 12 + "".join(f"{c:>12.11}" for c in cols)
+        body = [f"{r:>12.11}" + "".join(f"{v:12.4g}" for v in row) for r, row in zip(rows, M)]
+        return "\n".join([head, *body])
+
+    c = d.controllability
+    ev = lambda z: "  ".join(f"{v:.4g}" for v in sorted(z, key=lambda v: (v.real, v.imag)))  # noqa: E731
+    return "\n".join(
+        [
+            f"operating point x0 = {np.array2string(lin.x0, precision=4)}, "
+            f"u0 = {np.array2string(lin.u0, precision=4)}",
+            "A (continuous, on the regulated state):",
+            mat(lin.A, lin.states, lin.states),
+            "B (per unit of normalised action):",
+            mat(lin.B, lin.states, lin.inputs),
+            f"open-loop eigenvalues (1/s): {ev(d.open_loop_eigenvalues)}",
+            f"controllability: rank {c.rank} of {c.n}, condition number {c.condition:.3g}, "
+            f"PBH margin {c.margin:.3g}",
+            f"discretised with a zero-order hold at dt = {d.dt:g} s; Q diag = "
+            f"{np.array2string(np.diag(d.Q), precision=4)}, R diag = "
+            f"{np.array2string(np.diag(d.R), precision=4)}",
+            "gain K (action = a0 - K dx):",
+            mat(d.K, lin.inputs, lin.states),
+            "closed-loop |z|: "
+            + np.array2string(np.sort(np.abs(d.closed_loop_eigenvalues)), precision=4),
+            f"closed-loop rates log(z)/dt (1/s): {ev(d.closed_loop_rates)}",
+        ]
+    )
+
+
+def plot_response(env_id: str, path: str, seed: int = 0, Q=None, R=None, **env_kwargs) -> None:
+    """The closed-loop response from one perturbed start (errors and actions vs time)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        base = env.unwrapped
+        env.reset(seed=seed)
+        goal = base.goal
+        policy = LQRPolicy(env, Q=Q, R=R)
+        region = expected_region(base)
+        start = perturbed_starts(base, region, np.random.default_rng(seed))[0]
+        obs, _ = env.reset(seed=seed, options={"state": start, "goal": goal})
+        x0, u0 = base.operating_point()
+        d = policy.design(x0, u0)
+        errors, actions, success = [policy.error(base.state, x0)[d.linear.index]], [], []
+        done = False
+        while not done:
+            a, _ = policy.predict(obs)
+            obs, _, terminated, truncated, info = env.step(a)
+            errors.append(policy.error(info["state"], x0)[d.linear.index])
+            actions.append(a)
+            success.append(info["is_success"])
+            done = terminated or truncated
+    finally:
+        env.close()
+    t = base.control_period * np.arange(len(errors))
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    ax1.plot(t, np.array(errors), label=list(d.linear.states))
+    ax1.set_ylabel("x - x0 (SI; angles wrapped)")
+    ax1.set_title(
+        f"{env_id}: LQR from a perturbed start (seed {seed}); success at end: {success[-1]}"
+    )
+    ax1.legend(fontsize=8, ncol=3)
+    ax2.step(t[1:], np.array(actions), where="pre", label=list(d.linear.inputs))
+    ax2.set_ylabel("normalised action")
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylim(-1.1, 1.1)
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated numbers, got {text!r}"
+        ) from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.lqr",
+        description="LQR at an environment's operating point: prints A, B, eigenvalues, "
+        "controllability and the gain, then scores the closed loop over seeded episodes "
+        "started near the operating point (and zero torque for comparison).",
+    )
+    parser.add_argument(
+        "env_id", help="a Lagrange env id, e.g. Lagrange/Acrobot-v1, or module:Env-v0"
+    )
+    parser.add_argument("--episodes", type=int, default=100, help="seeded episodes (100)")
+    parser.add_argument("--seed", type=int, default=0, help="first seed (0)")
+    parser.add_argument("--scale", type=float, default=1.0, help="multiple of the start region")
+    parser.add_argument("--plot", metavar="FILE", help="save the closed-loop response here")
+    parser.add_argument(
+        "--q", type=_floats, metavar="W,W,...", help="diagonal of Q over the regulated state"
+    )
+    parser.add_argument("--r", type=_floats, metavar="W,...", help="diagonal of R over actions")
+    parser.add_argument(
+        "--measure-region",
+        action="store_true",
+        help="also search the largest multiple of the region with >= 99%% success",
+    )
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes must be at least 1, got {args.episodes}")
+    if not (np.isfinite(args.scale) and args.scale >= 0):
+        parser.error(f"--scale must be a non-negative number, got {args.scale}")
+    try:
+        env_id = check_env_id(args.env_id, lagrange=True)
+    except UserError as e:
+        parser.error(str(e))
+    env = gym.make(env_id)
+    env.reset(seed=args.seed)
+    try:
+        policy = LQRPolicy(env, Q=args.q, R=args.r)
+        print(f"{env_id}: LQR at the operating point of the goal drawn with seed {args.seed}")
+        print(describe(policy.design()))
+    except UncontrollableError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except ValueError as e:
+        parser.error(str(e))
+    finally:
+        env.close()
+    base_region = expected_region(gym.make(env_id))
+    region = {k: args.scale * v for k, v in base_region.items()}
+    print(f"\nstarts: operating point + uniform perturbation within +- {region}")
+    lqr_policy = lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)  # noqa: E731
+    for name, pol in (("LQR", lqr_policy), ("zero torque", ZeroPolicy)):
+        r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale)
+        print(
+            f"{name:>11}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}), "
+            f"return {r.returns.mean():.2f} +- {r.returns.std():.2f}"
+        )
+    if args.measure_region:
+        s, r = largest_region(env_id, lqr_policy, episodes=args.episodes, seed=args.seed)
+        print(
+            f"largest region with >= 99% success: {s:g} x the above "
+            f"({ {k: s * v for k, v in base_region.items()} }), success {r.success_rate:.0%}"
+        )
+    if args.plot:
+        plot_response(env_id, args.plot, args.seed, Q=args.q, R=args.r)
+        print(f"saved {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
