@@ -181,8 +181,8 @@ envs = pytest.importorskip("envs")
 def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
     # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
     # within the task's LQR region, at most 1/1.6 of the largest region with >= 99 %
-    # success measured by closed_loop.largest_region (see the task's LQRHints), so the 99 % bar holds
-    # with a margin rather than by the luck of the seed
+    # success measured by closed_loop.largest_region (see the task's LQRHints), so the
+    # issue's 99 % bar holds with a margin rather than by the luck of the seed
     lqr_run = closed_loop.evaluate_near(env_id, episodes=100, seed=0)
     assert lqr_run.success_rate >= 0.99, lqr_run.success_rate
     zero = closed_loop.evaluate_near(env_id, ZeroPolicy, episodes=100, seed=0)
