@@ -36,7 +36,7 @@ def real_array(owner: str, label: str, value) -> np.ndarray:
         return a.astype(np.float64, copy=False)
     if kind == "O":
         try:
-            return np.frompyfunc(_number, 1, 1)(a).astype(np.float64)
+            return np.asarray(np.frompyfunc(_number, 1, 1)(a), dtype=np.float64)
         except (TypeError, ValueError):
             pass
     raise TypeError(f"{owner}: {label} must be real numbers, got {value!r}.")

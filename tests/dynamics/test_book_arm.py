@@ -8,6 +8,8 @@ import sympy.physics.mechanics as me
 import dynamics
 from dynamics.spec import t
 
+from .helpers import book_residuals
+
 
 @pytest.fixture(scope="module")
 def arm():
@@ -39,6 +41,14 @@ def book_725(arm, Q1, Q2):
     )
 
 
+def test_725_holds_at_random_states_with_joint_motor_forces(arm):
+    _, _, _, M1, M2 = _symbols(arm)
+    residual = book_residuals(arm, list(book_725(arm, M1 - M2, M2)))
+    np.testing.assert_allclose(residual, 0.0, atol=1e-10)
+    assert np.abs(book_residuals(arm, list(book_725(arm, M1, M2)))).max() > 1e-3
+
+
+@pytest.mark.slow  # derives the arm and simplifies: ~3 s
 def test_equations_equal_725_with_joint_motor_forces(arm):
     # the elbow motor reacts on link 1: virtual work gives Q1 = M1 - M2, Q2 = M2
     _, _, _, M1, M2 = _symbols(arm)

@@ -144,6 +144,7 @@ def test_a_tampered_module_is_not_run_and_is_rebuilt(copied_cache, tmp_path):
     assert _derivative(system) == pytest.approx(0.2**2 * 0 + 4.0 * 0.1 - 9.81 * np.sin(0.6))
 
 
+@pytest.mark.slow  # a cold derivation and numba compilation: ~2.5 s
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "binary"])
 def test_a_damaged_module_is_rebuilt(copied_cache, damage):
     text = copied_cache.read_bytes()
@@ -157,6 +158,7 @@ def test_a_damaged_module_is_rebuilt(copied_cache, damage):
     assert np.isfinite(_derivative(system))
 
 
+@pytest.mark.slow  # a cold derivation and numba compilation: ~2.5 s
 def test_corrupt_numba_cache_files_are_rebuilt(copied_cache):
     numba_files = list((copied_cache.parent / "__pycache__").glob("*.nb[ic]"))
     assert numba_files
@@ -175,6 +177,7 @@ def test_valid_numba_cache_files_are_kept(copied_cache):
     assert [f.stat().st_mtime_ns for f in numba_files] == stamps
 
 
+@pytest.mark.slow  # a cold derivation and numba compilation: ~2.5 s
 def test_read_only_cache_compiles_cold_with_one_warning(tmp_path, monkeypatch):
     # a read-only directory, as seen by a non-root user (root ignores the permission bits)
     root = tmp_path / "ro"

@@ -11,7 +11,7 @@ import dynamics
 from dynamics.checks import MAX_SUBSTEPS, PARAMETER_RANGE
 
 SETTINGS = settings(
-    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 
 # numbers of every kind the methods may meet: ordinary, huge, tiny, NaN/inf, complex, bools
