@@ -1,13 +1,13 @@
 """Benchmark of the agents: scores at the chosen budget, and the speed facts behind defaults.
 
     python benchmarks/agents.py                 # every env: baselines, LQR, PPO (= agents.check)
-    python benchmarks/agents.py --speed         # torch threads 1 vs 2; env stepping for SB3
+    python benchmarks/agents.py --speed         # torch threads; env stepping; PPO vectorisation
 
 The scores part runs the main job (agents.check) into runs/benchmark and prints its table.
 The speed part measures what chose the defaults: PPO training throughput with one and two
-torch threads, and how fast SB3's DummyVecEnv of single envs steps compared with the
-environment's native vector env (which SB3 cannot drive as is: it autoresets on the next
-step, SB3 expects the same step).
+torch threads, how fast SB3's DummyVecEnv of single envs steps compared with the
+environment's native vector env, and PPO's env-steps/s on 16 copies through each (the
+native env driven by SB3 through agents.vecenv, autoresetting in the same step).
 """
 
 from __future__ import annotations
@@ -60,6 +60,25 @@ def stepping_rates(env_id: str, n_envs: int = 8, steps: int = 2000) -> tuple[flo
     return dummy_rate, steps * n_envs / (time.perf_counter() - start)
 
 
+def ppo_vectorization_rate(env_id: str, vectorization: str, n_envs: int = 16) -> float:
+    """PPO env-steps/s on `n_envs` copies made by agents.vecenv ("native" or "dummy"), the
+    task's PPO settings, 4 rollouts of 256 steps (the first, with compilation, not timed)."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents import hparams
+    from agents.train import algo_kwargs
+    from agents.vecenv import make_sb3_vec_env
+
+    hp = {**hparams.load("ppo", env_id), "n_steps": 256, "batch_size": 512}
+    venv = VecNormalize(make_sb3_vec_env(env_id, n_envs, 0, vectorization))
+    model = PPO("MlpPolicy", venv, device="cpu", seed=0, **algo_kwargs("ppo", hp, 1))
+    model.learn(256 * n_envs)
+    start = time.perf_counter()
+    model.learn(4 * 256 * n_envs, reset_num_timesteps=False)
+    return 4 * 256 * n_envs / (time.perf_counter() - start)
+
+
 def _action_shape(env_id: str) -> tuple[int, ...]:
     return gym.make(env_id).action_space.shape
 
@@ -80,13 +99,26 @@ def speed() -> None:
             f"{native:.0f} env-steps/s |",
             flush=True,
         )
+    for env_id in envs.ENV_IDS:
+        rates = {"native": [], "dummy": []}
+        for _ in range(3):  # alternate, take medians: the shared machine's load swings
+            for kind in rates:
+                rates[kind].append(ppo_vectorization_rate(env_id, kind))
+        native, dummy = (float(np.median(rates[k])) for k in ("native", "dummy"))
+        print(
+            f"| PPO on {env_id}, 16 copies: native / DummyVecEnv | {native:.0f} / {dummy:.0f} "
+            f"env-steps/s ({native / dummy:.2f}x) |",
+            flush=True,
+        )
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--speed", action="store_true", help="measure threads and env stepping")
     parser.add_argument("--episodes", type=int, default=50)
-    parser.add_argument("--algo", help="train this everywhere (default: the algorithm each task declares)")
+    parser.add_argument(
+        "--algo", help="train this everywhere (default: the algorithm each task declares)"
+    )
     parser.add_argument("--timesteps", type=int, help="training budget (default: the YAML's)")
     parser.add_argument("--out", default="runs/benchmark")
     args = parser.parse_args(argv)

@@ -303,6 +303,7 @@ def draw_generic(surface, x: Sequence[float], layout) -> None:
     counter-clockwise from the right) and a slider for each other coordinate within its
     limit (or +-1 when it has none), the rate as a bar beside it."""
     pygame, gfxdraw = _pygame()
+    pygame.font.init()
     names, n = layout.system.coordinates, layout.system.n_q
     size = surface.get_width()
     row = size / max(n, 1)

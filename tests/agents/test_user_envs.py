@@ -1,0 +1,51 @@
+"""Every command on a system the project has never seen (examples/), by Gymnasium's
+module:Env-v0 form, and a clear line for envs that are not built on the runtime."""
+
+from __future__ import annotations
+
+import pytest
+
+from agents import check, evaluate, hparams, lqr_cli
+
+USER_ID = "examples.cart_pole:Examples/CartPole-v0"
+
+
+def test_lqr_command_on_a_user_system(capsys):
+    assert lqr_cli.main([USER_ID, "--episodes", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "LQR: success 20/20" in out
+
+
+def test_evaluate_command_on_a_user_system(capsys):
+    assert evaluate.main([USER_ID, "--agent", "lqr", "--episodes", "5"]) == 0
+    assert "success 100%" in capsys.readouterr().out
+
+
+def test_a_missing_heuristic_is_one_clear_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        evaluate.main([USER_ID, "--agent", "heuristic", "--episodes", "2"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "declares no heuristic" in err[0]
+
+
+@pytest.mark.parametrize("main", [lqr_cli.main, check.main])
+def test_an_env_not_built_on_the_runtime_gets_a_clear_error(main, capsys):
+    with pytest.raises(SystemExit):
+        main(["Acrobot-v1"])
+    assert "not built on the Lagrange runtime" in capsys.readouterr().err
+
+
+def test_a_user_system_gets_default_hyperparameters():
+    hp = hparams.load("ppo", "Examples/CartPole-v0")
+    assert hp["n_timesteps"] == 100_000 and hp["normalize"] is True
+    assert hparams.check_algo("Examples/CartPole-v0") == "ppo"
+
+
+@pytest.mark.slow
+def test_main_job_on_a_user_system_end_to_end(tmp_path, capsys):
+    argv = [USER_ID, "--timesteps", "1024", "--episodes", "4", "--out", str(tmp_path)]
+    assert check.main(argv + ["--no-progress"]) == 0
+    report = (tmp_path / "results.md").read_text()
+    for agent in ("random", "zero", "lqr", "ppo"):
+        assert f"| Examples/CartPole-v0 | {agent} |" in report
