@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from . import checks
+
 
 @dataclass(frozen=True)
 class Modes:
@@ -84,7 +86,7 @@ def mass_and_stiffness(model, q0, **params) -> tuple[np.ndarray, np.ndarray]:
     for key, value in params.items():
         if key not in values:
             raise ValueError(f"Unknown parameter {key!r} for {model.name}.")
-        values[key] = float(value)
+        values[key] = checks.parameter(model.name, key, value)
     plain = [sp.Symbol(f"q{i}") for i in range(len(q))]
     subs = {qi.diff(t): 0 for qi in q} | dict(zip(q, plain))
     point = dict(zip(plain, q0)) | {s: values[str(s)] for s in spec.parameters}
