@@ -221,6 +221,13 @@ class Task:
         return self.failure if self.failure is not None else _none
 
     # ---- documentation -------------------------------------------------------------------
+    def describe(self, **params) -> str:
+        """The action, observation and reward-term tables (Markdown) at these model
+        parameters (defaults otherwise): what the env docstring shows."""
+        from .layout import build_layout
+
+        return self.tables(build_layout(self, params))
+
     def tables(self, layout) -> str:
         """The '## Action Space' and '## Observation Space' sections of the env docstring,
         for a built `layout` (see `envs.layout.Layout`)."""
@@ -258,9 +265,7 @@ def document(doc: str, task: Task, **params) -> str:
     """`doc` (a Gymnasium-style env docstring) with the generated action, observation and
     reward-term tables of `task` (at its default parameters) put between its
     '## Description' and '## Rewards' sections, replacing earlier generated ones."""
-    from .layout import build_layout
-
-    tables = task.tables(build_layout(task, params))
+    tables = task.describe(**params)
     head, sep, tail = doc.partition("## Rewards\n")
     if not sep:
         return doc.rstrip() + "\n\n" + tables + "\n"
