@@ -24,9 +24,9 @@ FRAMES = (0, 15, 40)
 
 def action(env_id: str, k: int, env) -> np.ndarray:
     """The action at step k: gentle torques that make each system move."""
-    if env_id.endswith("RollingDisk-v0"):
+    if env_id.endswith("RollingDisk-v1"):
         return np.array([0.0, 0.3 if k < 20 else 0.0])  # steer briefly, then roll free
-    if env_id.endswith("BeadOnRod-v0"):  # keep the rod about level; the bead drifts
+    if env_id.endswith("BeadOnRod-v1"):  # keep the rod about level; the bead drifts
         r, phi, _, phid = env.unwrapped.state
         return np.array([np.clip(0.5 * r - 2.0 * phi - 0.5 * phid, -1, 1)])
     return np.full(env.action_space.shape, 0.5 * np.sin(0.2 * k))
