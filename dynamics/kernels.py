@@ -23,27 +23,25 @@ def fail(r):
 
 @njit(cache=True, error_model="numpy")
 def solve(A, r):
-    """Solve A z = r in place (r <- z): rows scaled to a largest entry of 1, then Gaussian
-    elimination with partial pivoting.
+    """Solve A z = r in place (r <- z) by Gaussian elimination with partial pivoting.
 
-    A is the small (K x K) mass/constraint matrix; LAPACK's call overhead is several times
-    the arithmetic at this size (see benchmarks/dynamics.py). A singular matrix (a pivot
-    below PIVOT_TOL) or a non-finite entry leaves NaN in r instead of raising.
+    A is the small mass/constraint matrix, K x K, stored with one spare column (shape
+    (K, K + 1)) that holds each row's largest entry; LAPACK's call overhead is several
+    times the arithmetic at this size (see benchmarks/dynamics.py). A pivot below
+    PIVOT_TOL times its row's largest entry (the matrix singular to working precision,
+    whatever the scale of each row) or an empty row leaves NaN in r instead of raising.
     """
     k = r.shape[0]
     for i in range(k):
         s = 0.0
         for j in range(k):
             a = abs(A[i, j])
-            if not a <= s:  # NaN propagates
+            if a > s:
                 s = a
         if not (s > 0.0 and s < math.inf):
             fail(r)
             return
-        inv = 1.0 / s
-        for j in range(k):
-            A[i, j] *= inv
-        r[i] *= inv
+        A[i, k] = s
     for c in range(k):
         piv = c
         big = abs(A[c, c])
@@ -51,11 +49,11 @@ def solve(A, r):
             if abs(A[i, c]) > big:
                 big = abs(A[i, c])
                 piv = i
-        if not big > PIVOT_TOL:
+        if not big > PIVOT_TOL * A[piv, k]:
             fail(r)
             return
         if piv != c:
-            for j in range(k):
+            for j in range(k + 1):
                 tmp = A[c, j]
                 A[c, j] = A[piv, j]
                 A[piv, j] = tmp
@@ -110,7 +108,7 @@ def project(t, x, p, A, z):
 
 @njit(cache=True, error_model="numpy")
 def derivative_batch(T, X, U, p, out):
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     for b in range(X.shape[0]):
         rhs(T[b], X[b], U[b], p, A, z, out[b])
@@ -118,7 +116,7 @@ def derivative_batch(T, X, U, p, out):
 
 @njit(cache=True, error_model="numpy")
 def accelerations_batch(T, X, U, p, out):
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     for b in range(X.shape[0]):
         accelerations(T[b], X[b], U[b], p, A, out[b])
 
@@ -128,7 +126,7 @@ def rk4_batch(T, X, U, p, h, substeps, out):
     """Classical RK4, `substeps` steps of size h per row, inputs held (zero-order hold).
     Constrained models are projected onto their velocity constraints after every step."""
     n2 = X.shape[1]
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     x = np.empty(n2)
     xs = np.empty(n2)
@@ -162,7 +160,7 @@ def rk4_batch(T, X, U, p, h, substeps, out):
 
 @njit(cache=True, error_model="numpy")
 def project_batch(T, X, p, out):
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     for b in range(X.shape[0]):
         for i in range(X.shape[1]):
@@ -184,7 +182,7 @@ def residual_batch(T, X, p, out):
 
 @njit(cache=True, error_model="numpy")
 def power_batch(T, X, U, p, out):
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     for b in range(X.shape[0]):
         accelerations(T[b], X[b], U[b], p, A, z)
@@ -193,7 +191,7 @@ def power_batch(T, X, U, p, out):
 
 @njit(cache=True, error_model="numpy")
 def outputs_batch(T, X, U, p, out):
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     for b in range(X.shape[0]):
         accelerations(T[b], X[b], U[b], p, A, z)
@@ -238,7 +236,7 @@ def first_nonfinite(Y):
 @njit(cache=True, error_model="numpy")
 def singular_at(t, x, p):
     """True if the mass/constraint matrix at (t, x) is finite but singular for `solve`."""
-    A = np.empty((K, K))
+    A = np.empty((K, K + 1))  # a spare column for solve
     z = np.ones(K)
     kkt_matrix(t, x, p, A)
     for i in range(K):

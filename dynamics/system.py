@@ -279,7 +279,7 @@ class System:
                 f"axis); got leading shape {lead}."
             )
         n, k = self.n_q, self.n_q + self.n_c
-        Am = np.empty((k, k))
+        Am = np.empty((k, k + 1))  # the kernels' solve keeps row scales in a spare column
         z = np.empty(k)
         Jx = np.empty((k, 2 * n))
         Ju = np.empty((k, self.n_u))
@@ -287,7 +287,7 @@ class System:
         terms = np.concatenate([z, Jx.ravel(), Ju.ravel()])[None, :]
         self._finite("linearize", terms, T, X, U)
         with np.errstate(all="ignore"):
-            dz = -np.linalg.solve(Am, np.hstack([Jx, Ju]))
+            dz = -np.linalg.solve(Am[:, :k], np.hstack([Jx, Ju]))
         self._finite("linearize", dz.reshape(1, -1), T, X, U)
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
@@ -310,9 +310,13 @@ def _eliminate(A: list, r: list) -> list:
     """Solve A z = r for lists of entries (arrays over the batch, or floats), by Gaussian
     elimination without pivoting: valid for the mass/constraint matrix in its natural order,
     whose leading block M is positive definite and whose Schur complement -B M^-1 B^T is
-    negative definite. Exact zeros are skipped."""
+    negative definite. Exact zeros are skipped. Rows whose pivot falls below PIVOT_TOL times
+    the largest entry of its row (singular there, as the compiled solve judges) give NaN."""
     k = len(r)
+    scale = [np.max(np.abs(np.broadcast_arrays(*row)), axis=0) for row in A]
     for c in range(k):
+        pivot = A[c][c]
+        A[c][c] = np.where(np.abs(pivot) > PIVOT_TOL * scale[c], pivot, np.nan)
         for i in range(c + 1, k):
             if _is_zero(A[i][c]):
                 continue
@@ -329,6 +333,9 @@ def _eliminate(A: list, r: list) -> list:
                 s = s - A[c][j] * z[j]
         z[c] = s / A[c][c]
     return z
+
+
+PIVOT_TOL = 64 * np.finfo(np.float64).eps  # as in the compiled solve (kernels.py)
 
 
 def _rows(a: np.ndarray, lead: tuple, nb: int) -> np.ndarray:
