@@ -8,18 +8,15 @@ that reject bad budgets with a clear message.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import difflib
 import importlib
 import os
-import tempfile
-from collections.abc import Iterator
-from pathlib import Path
 
 import gymnasium as gym
 
-_UMASK = os.umask(0)
-os.umask(_UMASK)
+from dynamics.files import atomic_path  # noqa: F401  (re-exported: one atomic writer)
+from dynamics.files import write_atomic as write_text_atomic  # noqa: F401
+
 DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/agents.py --threads (2 threads is slower)
 
 
@@ -103,34 +100,6 @@ def set_torch_threads(n: int = DEFAULT_TORCH_THREADS) -> None:
     if n < 1:
         raise ValueError(f"Number of torch threads must be at least 1, got {n}.")
     torch.set_num_threads(n)
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path next to `path`; on success move it over `path` atomically.
-
-    The temporary file keeps `path`'s suffix (or `suffix`), so writers that add an
-    extension when it is missing (SB3's `save`) write exactly where they are told."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
-    )
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file normal permissions
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write `text` to `path` atomically (temp file + os.replace)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
 
 
 def positive_int(text: str) -> int:

@@ -28,6 +28,8 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from .files import write_atomic
+
 try:
     import fcntl
 except ImportError:  # not POSIX: concurrent builds each derive (still correct)
@@ -40,8 +42,6 @@ takes well under a minute)."""
 _HEADER = "# lagrange-gym "
 _loaded: dict[str, ModuleType] = {}
 _fallback: list[Path] = []
-_UMASK = os.umask(0)
-os.umask(_UMASK)
 
 
 def cache_dir() -> Path:
@@ -90,25 +90,6 @@ def body_of(text: str, key: str) -> str | None:
     """The body of a stamped file text if its key and hash are right, else None."""
     header, _, body = text.partition("\n")
     return body if header == f"{_HEADER}{key} sha256={_digest(body)}" else None
-
-
-def write_atomic(path: Path, data: str | bytes) -> None:
-    """Write `data` (text as UTF-8, or bytes) to `path` through a temporary file in the same
-    directory and a rename, so readers never see a partial file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file normal permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _file_name(name: str, key: str) -> str:
