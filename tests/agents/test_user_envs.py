@@ -49,3 +49,13 @@ def test_main_job_on_a_user_system_end_to_end(tmp_path, capsys):
     report = (tmp_path / "results.md").read_text()
     for agent in ("random", "zero", "lqr", "ppo"):
         assert f"| Examples/CartPole-v0 | {agent} |" in report
+
+
+@pytest.mark.slow
+def test_train_command_on_a_user_system(tmp_path, capsys):
+    from agents import train
+
+    argv = [USER_ID, "--timesteps", "512", "--run-dir", str(tmp_path), "--no-progress"]
+    assert train.main(argv) == 0
+    assert (tmp_path / "model.zip").is_file()
+    assert "Examples/CartPole-v0" in capsys.readouterr().out
