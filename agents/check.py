@@ -28,6 +28,7 @@ from .common import (
     atomic_path,
     check_env_id,
     env_slug,
+    fail,
     non_negative_int,
     positive_int,
     register_envs,
@@ -288,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
             for env_id in env_ids or register_envs():
                 hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
     except ValueError as exc:
-        parser.error(str(exc))
+        fail(parser, exc)
     run_check(
         env_ids,
         args.algo,

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import importlib
+from typing import NoReturn
 
 import gymnasium as gym
 
@@ -61,6 +62,11 @@ def check_env_id(env_id: str, lagrange: bool = False) -> str:
     if lagrange:
         task_of(env_id)
     return env_id
+
+
+def fail(parser, message) -> NoReturn:
+    """End a command-line program on a user error: one line, exit status 2."""
+    parser.exit(2, f"{parser.prog}: error: {message}\n")
 
 
 def task_of(env_id: str):

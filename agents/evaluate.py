@@ -21,6 +21,7 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
+    fail,
     lagrange_env,
     non_negative_int,
     positive_int,
@@ -203,11 +204,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         env_id = check_env_id(args.env_id)
     except ValueError as exc:
-        parser.error(str(exc))
+        fail(parser, exc)
     if args.agent not in BASELINES and not Path(args.agent).exists():
-        parser.error(
+        fail(
+            parser,
             f"unknown agent {args.agent!r}: choose {', '.join(BASELINES)} or the path of a "
-            f"trained model"
+            f"trained model",
         )
     from .common import set_torch_threads
 
@@ -217,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
             env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic
         )
     except (ValueError, FileNotFoundError) as exc:
-        parser.exit(2, f"{parser.prog}: error: {exc}\n")
+        fail(parser, exc)
     print(f"{args.agent} on {env_id}: {stats.summary()}")
     if args.video:
         print(f"Video in {args.video}")

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from .closed_loop import evaluate_near, expected_region, largest_region, perturbed_starts
-from .common import UserError, atomic_path, check_env_id
+from .common import UserError, atomic_path, check_env_id, fail
 from .linear import UncontrollableError
 from .lqr import LQRDesign, LQRPolicy
 from .policies import ZeroPolicy
@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         env_id = check_env_id(args.env_id, lagrange=True)
     except UserError as e:
-        parser.error(str(e))
+        fail(parser, e)
     env = gym.make(env_id)
     env.reset(seed=args.seed)
     try:
@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 1
     except ValueError as e:
-        parser.error(str(e))
+        fail(parser, e)
     finally:
         env.close()
     base_region = expected_region(gym.make(env_id))

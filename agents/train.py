@@ -398,8 +398,12 @@ def load_replay_buffer(model: BaseAlgorithm, path: str | Path) -> None:
 def _cut_rows(value, rows: int, keep: int):
     if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == rows:
         return value[:keep]  # a view: pickling writes only its rows
-    if isinstance(value, dict) and value and all(
-        isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows for v in value.values()
+    if (
+        isinstance(value, dict)
+        and value
+        and all(
+            isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows for v in value.values()
+        )
     ):
         return {k: v[:keep] for k, v in value.items()}
     return None
