@@ -386,6 +386,8 @@ def _input_limits(value, p, n: int) -> np.ndarray:
     if callable(value):
         value = value(p)
     items = list(value) if np.ndim(value) else [value] * n
+    if any(isinstance(v, (bool, complex, np.complexfloating)) for v in items):
+        raise TypeError(f"max_input must be real numbers, got {value!r}.")
     try:
         limits = np.array([resolve(v, p) for v in items], dtype=np.float64)
     except (TypeError, ValueError):
