@@ -50,13 +50,34 @@ def build_heuristic(env):
     return cls(env, **dict(task.heuristic.kwargs))
 
 
+ENDINGS = ("success", "failure", "diverged", "time limit")
+
+
 @dataclass(frozen=True)
 class EvalStats:
-    """Per-episode returns, lengths and success (the task's criterion at the last step)."""
+    """Per-episode returns, lengths, success (the task's criterion at the last step) and how
+    each episode ended: `terminated` (the task's failure or divergence, before the time
+    limit) and, of those, `diverged` (`info["diverged"]`); neither means the time limit
+    truncated it. Missing ending arrays read as all truncated."""
 
     returns: np.ndarray
     lengths: np.ndarray
     successes: np.ndarray
+    terminated: np.ndarray | None = None
+    diverged: np.ndarray | None = None
+
+    def endings(self) -> dict[str, int]:
+        """Episodes per way of ending (`ENDINGS`), each episode counted once: success, else
+        diverged, else failure (terminated by the task), else time limit (truncated)."""
+        none = np.zeros(len(self.returns), dtype=bool)
+        success = np.asarray(self.successes, dtype=bool)
+        terminated = none if self.terminated is None else np.asarray(self.terminated, bool)
+        diverged = none if self.diverged is None else np.asarray(self.diverged, bool)
+        diverged = diverged & ~success
+        failure = terminated & ~diverged & ~success
+        time_limit = ~(success | diverged | failure)
+        counts = (success, failure, diverged, time_limit)
+        return {name: int(c.sum()) for name, c in zip(ENDINGS, counts)}
 
     @property
     def mean_return(self) -> float:
@@ -78,7 +99,9 @@ class EvalStats:
         return (
             f"return {self.mean_return:.1f} +- {self.std_return:.1f}, success "
             f"{self.success_rate:.0%}, length {self.mean_length:.0f} "
-            f"({len(self.returns)} episodes)"
+            f"({len(self.returns)} episodes: "
+            + ", ".join(f"{n} {name}" for name, n in self.endings().items() if n)
+            + ")"
         )
 
 
@@ -149,7 +172,7 @@ def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
     n = venv.num_envs
     obs, _ = venv.reset(seed=seed)
     returns, lengths = np.zeros(n), np.zeros(n, dtype=np.int64)
-    successes = np.zeros(n, dtype=bool)
+    successes, ended_early, diverged = (np.zeros(n, dtype=bool) for _ in range(3))
     running = np.ones(n, dtype=bool)
     while running.any():
         action, _ = policy.predict(obs, deterministic=deterministic)
@@ -158,8 +181,10 @@ def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
         lengths[running] += 1
         done = running & (terminated | truncated)
         successes[done] = np.asarray(info["is_success"])[done]
+        ended_early[done] = np.asarray(terminated)[done]
+        diverged[done] = np.asarray(info.get("diverged", np.zeros(n, bool)))[done]
         running &= ~done
-    return EvalStats(returns, lengths, successes)
+    return EvalStats(returns, lengths, successes, ended_early, diverged & ended_early)
 
 
 def record_video(env_id: str, policy, video_dir, seed: int = 0, deterministic=True) -> Path:
