@@ -6,26 +6,32 @@ For each environment (default: the built-in Lagrange envs; any Lagrange env id o
 Gymnasium's module:Env-v0 form): random, zero torque, the task's heuristic (where it
 declares one), LQR, and an SB3 agent trained with the task's algorithm and hyperparameters
 (`agents.hparams`), each scored on the same seeded episodes. Prints a Markdown
-comparison table and writes it, a CSV and plots to runs/check/ (training runs under
-runs/check/train/; a re-run resumes them from their checkpoints, --fresh starts over).
+comparison (how episodes ended, 95 % intervals, findings claimed only where the intervals
+separate: `agents.report`) and writes it, a CSV and a figure to runs/check/.
+
+Training runs live under runs/check/train/ENV/ALGO_seedS_Nsteps, one directory per budget:
+a re-run with the same budget resumes (or reuses) its run, another budget starts a fresh
+one and keeps the earlier, a run whose stored hyperparameters differ from today's is
+refused unless --fresh retrains it. Training time is stored in the run directory
+(`TIME_FILE`, summed over resumed segments); evaluation time excludes one-off compilation
+and loading (an untimed first episode per agent).
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import io
+import json
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
+import yaml
 
 from . import hparams
 from .common import (
     DEFAULT_TORCH_THREADS,
-    atomic_path,
+    UserError,
     check_env_id,
     env_slug,
     fail,
@@ -35,17 +41,104 @@ from .common import (
     set_torch_threads,
     write_text_atomic,
 )
-from .evaluate import BASELINES, EvalStats, evaluate, heuristic_of
-from .train import ALGORITHMS, train
+from .evaluate import BASELINES, evaluate, heuristic_of
+from .report import (
+    Row,
+    Training,
+    findings,
+    markdown_table,
+    plot_comparison,
+    training_lines,
+    write_csv,
+)
+from .train import (
+    ALGORITHMS,
+    TrainingInterrupted,
+    latest_checkpoint,
+    load_hyperparams,
+    train,
+)
+
+TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
 
 
-@dataclass(frozen=True)
-class Row:
-    env_id: str
-    agent: str
-    stats: EvalStats
-    wall_s: float  # evaluation (and, for the trained agent, training) time, s
-    note: str = ""
+def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
+    """(stats, evaluation seconds, warm-up seconds): one episode first, untimed, so that the
+    evaluation's time excludes one-off costs (numba kernels compiled or loaded, LQR's
+    linearisation, a model's loading)."""
+    start = time.perf_counter()
+    evaluate(env_id, agent, 1, seed)
+    warm = time.perf_counter() - start
+    start = time.perf_counter()
+    stats = evaluate(env_id, agent, episodes, seed)
+    return stats, time.perf_counter() - start, warm
+
+
+def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int) -> Path:
+    """Each budget trains in a directory of its own, so asking for another budget starts a
+    fresh run and keeps the earlier one (asked for again, it is resumed or reused)."""
+    return out / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{budget}steps"
+
+
+def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
+    """UserError when `run_dir` holds a run trained with another budget or hyperparameters
+    than asked for now (--fresh retrains it)."""
+    config = run_dir / "config.yml"
+    if not config.exists() or not (run_dir / "checkpoints").is_dir():
+        return
+    earlier = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+    now = yaml.safe_load(yaml.safe_dump(hp))  # as config.yml stores it
+    then = earlier.get("hyperparams") or {}
+    differ = [
+        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} now"
+        for k in sorted(set(now) | set(then))
+        if then.get(k) != now.get(k)
+    ]
+    if earlier.get("n_timesteps") != budget:
+        differ.insert(0, f"budget: {earlier.get('n_timesteps')} in the run, {budget} now")
+    if differ:
+        raise UserError(
+            f"{run_dir} holds a run trained with other settings than asked for now "
+            f"({'; '.join(differ)}). Pass --fresh to retrain it, or --out DIR to keep it."
+        )
+
+
+def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams):
+    """train(), resuming a run of this budget found on disk unless `fresh`; returns the
+    result and the run's `Training` record, whose time is summed over resumed segments."""
+    found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
+    start = found[0] if found else 0
+    try:
+        result = train(
+            env_id,
+            algo,
+            timesteps=budget,
+            seed=seed,
+            run_dir=run_dir,
+            resume=not fresh,
+            overwrite=fresh,
+            progress=progress,
+            hyperparams=hyperparams,
+        )
+    except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
+        record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
+        raise
+    seconds, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
+    now = result.wall_s if result.timesteps > start else 0.0
+    return result, Training(algo, budget, result.timesteps, seconds, timed, "", now)
+
+
+def record_segment(run_dir: Path, start: int, end: int, seconds: float) -> tuple[float, int]:
+    """Add a training segment (steps start..end in `seconds`) to the run's TIME_FILE,
+    dropping segments past `start` (a fresh run, or steps a resumed checkpoint lost); return
+    the run's training seconds and the steps they cover."""
+    path = run_dir / TIME_FILE
+    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
+    segments = [s for s in segments if s["to"] <= start] if start > 0 else []
+    if end > start:
+        segments.append({"from": start, "to": end, "seconds": round(seconds, 3)})
+    write_text_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
+    return sum(s["seconds"] for s in segments), sum(s["to"] - s["from"] for s in segments)
 
 
 def check_env(
@@ -67,130 +160,76 @@ def check_env(
     for name in BASELINES:
         if name == "heuristic" and heuristic is None:
             continue
-        start = time.perf_counter()
-        stats = evaluate(env_id, name, episodes, seed)
+        stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
         note = heuristic.description if name == "heuristic" else ""
-        rows.append(Row(env_id, name, stats, time.perf_counter() - start, note))
+        rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
-    start = time.perf_counter()
-    hp = hparams.load(algo, env_id, hyperparams)
-    budget = timesteps if timesteps is not None else hp["n_timesteps"]
-    log(f"  training {algo} for {budget} steps ...")
-    result = train(
-        env_id,
-        algo,
-        timesteps=budget,
-        seed=seed,
-        run_dir=out / "train" / env_slug(env_id) / f"{algo}_seed{seed}",
-        resume=not fresh,
-        overwrite=fresh,
-        progress=progress,
-        hyperparams=hyperparams,
+    budget = budget_of(env_id, algo, timesteps, hyperparams)
+    run_dir = run_dir_of(out, env_id, algo, seed, budget)
+    log(f"  training {algo.upper()} for {budget:,} steps in {run_dir} ...")
+    result, training = train_timed(
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams
     )
-    stats = evaluate(env_id, str(result.model_path), episodes, seed)
-    note = f"{result.timesteps} steps"
-    rows.append(Row(env_id, algo, stats, time.perf_counter() - start, note))
-    log(f"  {algo:>9}: {stats.summary()} ({note}, {rows[-1].wall_s:.0f} s)")
+    training = replace(training, run_dir=run_dir.relative_to(out).as_posix())
+    stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
+    rows.append(Row(env_id, algo, stats, eval_s, "", training, warm_s))
+    log(
+        f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
+        f"{training.train_s:.0f} s training)"
+    )
     return rows
 
 
-def markdown_table(rows: list[Row]) -> str:
-    lines = [
-        "| environment | agent | return (mean +- std) | success | length | time (s) | note |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        s = r.stats
-        lines.append(
-            f"| {r.env_id} | {r.agent} | {s.mean_return:.1f} +- {s.std_return:.1f} | "
-            f"{s.success_rate:.0%} | {s.mean_length:.0f} | {r.wall_s:.1f} | {r.note} |"
-        )
-    return "\n".join(lines)
+def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
+    """The training budget: `timesteps`, else the hyperparameters' n_timesteps."""
+    if timesteps is not None:
+        return int(timesteps)
+    return int(hparams.load(algo, env_id, hyperparams)["n_timesteps"])
 
 
-def findings(rows: list[Row]) -> list[str]:
-    """One sentence per environment: the best agent, and LQR against the trained agent."""
-    out = []
-    for env_id in dict.fromkeys(r.env_id for r in rows):
-        mine = {r.agent: r.stats for r in rows if r.env_id == env_id}
-        algo = [r.agent for r in rows if r.env_id == env_id][-1]  # the trained agent is last
-        best = max(mine, key=lambda a: (mine[a].success_rate, mine[a].mean_return))
-        text = f"{env_id}: best {best}"
-        if "lqr" in mine and algo in mine:
-            lqr, rl = mine["lqr"], mine[algo]
-            lqr_wins = (lqr.success_rate, lqr.mean_return) > (rl.success_rate, rl.mean_return)
-            winner = "LQR beats" if lqr_wins else "LQR does not beat"
-            text += (
-                f"; {winner} {algo.upper()} (success {lqr.success_rate:.0%} vs "
-                f"{rl.success_rate:.0%}, return {lqr.mean_return:.1f} vs {rl.mean_return:.1f})"
-            )
-        baselines = [mine[a] for a in ("zero", "random") if a in mine]
-        if algo in mine and baselines:
-            beats = all(mine[algo].mean_return > b.mean_return for b in baselines)
-            text += f"; {algo.upper()} {'beats' if beats else 'does NOT beat'} zero and random"
-        out.append(text + ".")
-    return out
+def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams) -> None:
+    """Before any work: refuse (UserError) a run on disk that the job would resume with
+    other settings than asked for (see `check_earlier_run`)."""
+    for env_id in env_ids:
+        name = algo or hparams.check_algo(env_id)
+        budget = budget_of(env_id, name, timesteps, hyperparams)
+        hp = load_hyperparams(name, env_id, hyperparams)
+        check_earlier_run(run_dir_of(out, env_id, name, seed, budget), budget, hp)
 
 
-def write_csv(rows: list[Row], path: Path) -> None:
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(
-        [
-            "env_id",
-            "agent",
-            "mean_return",
-            "std_return",
-            "success_rate",
-            "mean_length",
-            "wall_s",
-            "note",
-        ]
+def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:
+    """The Markdown report: what was run and how it is scored, the table, the findings."""
+    trained = "\n".join(f"- {line}" for line in training_lines(rows))
+    runs = [r.training for r in rows if r.training is not None]
+    train_s, now_s = sum(t.train_s for t in runs), sum(t.now_s for t in runs)
+    eval_s = sum(r.eval_s for r in rows)
+    warm_s = sum(r.warmup_s for r in rows)
+    notes = "\n".join(f"- {line}" for line in findings(rows))
+    return (
+        f"# Agents on every environment\n\n"
+        f"{episodes} episodes per agent, seeded {seed}..{seed + episodes - 1} (the same starts "
+        "for every agent). Success is the task's criterion at the last step; each episode "
+        "ended in one way: success, failure (the task terminated it), diverged (the state "
+        "left its bounds or became non-finite) or time limit (truncated without success). "
+        "Intervals are 95 %: Wilson's score interval for the success rate, Student's t "
+        'interval for the mean return. A finding says "A beats B" only where the two '
+        "intervals do not overlap, and on which measure; otherwise it says the difference is "
+        f"not resolved at {episodes} episodes.\n\n"
+        "## Trained agents\n\nAlgorithm and budget per environment. Each budget trains in "
+        "a run directory of its own: a run of the same budget on disk is resumed (or reused "
+        "when finished), another budget starts a fresh run and keeps the earlier one, and a "
+        "run with other hyperparameters is refused unless --fresh retrains it. Training time "
+        "is stored with the run and summed over its resumed segments. PPO trains whole "
+        "rollouts (n_steps x n_envs steps), so it may train a little past the budget.\n\n"
+        f"{trained}\n\n"
+        f"Time: training {train_s:.0f} s (stored with the runs; {now_s:.0f} s of it in this "
+        f"run of the job), evaluation {eval_s:.1f} s, warm-up {warm_s:.1f} s "
+        "(one untimed episode per agent first: numba kernels compiled or loaded, LQR "
+        "designed, models loaded; counted in neither); this run of the job took "
+        f"{wall_s:.0f} s.\n\n"
+        f"{markdown_table(rows)}\n\n## Findings\n\n{notes}\n\n"
+        "![comparison](comparison.png)\n"
     )
-    for r in rows:
-        s = r.stats
-        writer.writerow(
-            [
-                r.env_id,
-                r.agent,
-                f"{s.mean_return:.4f}",
-                f"{s.std_return:.4f}",
-                f"{s.success_rate:.4f}",
-                f"{s.mean_length:.1f}",
-                f"{r.wall_s:.2f}",
-                r.note,
-            ]
-        )
-    write_text_atomic(path, buf.getvalue())
-
-
-def plot_comparison(rows: list[Row], path: Path) -> None:
-    """One panel per environment: mean return +- std of each agent, success rate printed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    env_ids = list(dict.fromkeys(r.env_id for r in rows))
-    cols = min(3, len(env_ids))
-    nrows = -(-len(env_ids) // cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(4.6 * cols, 3.4 * nrows), squeeze=False)
-    for ax in axes.flat[len(env_ids) :]:
-        ax.set_visible(False)
-    for ax, env_id in zip(axes.flat, env_ids):
-        mine = [r for r in rows if r.env_id == env_id]
-        y = np.arange(len(mine))
-        means = [r.stats.mean_return for r in mine]
-        ax.barh(y, means, xerr=[r.stats.std_return for r in mine], color="tab:blue", alpha=0.7)
-        ax.set_yticks(y, [f"{r.agent}\n{r.stats.success_rate:.0%}" for r in mine])
-        ax.invert_yaxis()
-        ax.set(title=env_id.split("/")[-1], xlabel="episode return")
-        ax.grid(axis="x", alpha=0.3)
-    fig.suptitle("agents on every environment (label: success rate)")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=100)
-    plt.close(fig)
 
 
 def run_check(
@@ -211,6 +250,8 @@ def run_check(
         raise ValueError("No environments to check: the `envs` package registers none.")
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
+    if not fresh:
+        check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     start = time.perf_counter()
     rows: list[Row] = []
@@ -221,24 +262,12 @@ def run_check(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams
         )
     total = time.perf_counter() - start
-    table = markdown_table(rows)
-    notes = "\n".join(f"- {line}" for line in findings(rows))
-    trained = "; ".join(
-        f"{r.env_id}: {r.agent.upper()} for {r.note}" for r in rows if r.agent not in BASELINES
-    )
-    report = (
-        f"# Agents on every environment\n\n{episodes} episodes per agent (seeds {seed}.."
-        f"{seed + episodes - 1}), success = the task's criterion at the last step. "
-        f"Trained: {trained}. Total wall time {total:.0f} s.\n\n{table}\n\n"
-        f"## Findings\n\n{notes}\n\n"
-        f"![comparison](comparison.png)\n"
-    )
-    write_text_atomic(out / "results.md", report)
+    write_text_atomic(out / "results.md", report_text(rows, episodes, seed, total))
     write_csv(rows, out / "results.csv")
     plot_comparison(rows, out / "comparison.png")
-    print(table)
-    print()
-    print(notes)
+    print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")
+    print(markdown_table(rows) + "\n")
+    print("\n".join(f"- {line}" for line in findings(rows)))
     print(f"\nTotal wall time {total:.0f} s. Report, CSV and plots in {out}/")
     return rows
 
@@ -273,7 +302,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="training budget per env (default: the YAML's n_timesteps)",
     )
     parser.add_argument("--out", default="runs/check", help="output directory")
-    parser.add_argument("--fresh", action="store_true", help="retrain instead of resuming")
+    parser.add_argument(
+        "--fresh",
+        action="store_true",
+        help="retrain the runs of this budget from scratch. Without it, each budget trains "
+        "in a run directory of its own (--out/train/ENV/ALGO_seedS_Nsteps): a run of the "
+        "same budget is resumed from its checkpoint (or reused when finished), another "
+        "budget starts a fresh run and keeps the earlier one, and a run of the same budget "
+        "with other hyperparameters is refused with a message",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
     return parser
 
@@ -290,17 +327,28 @@ def main(argv: list[str] | None = None) -> int:
                 hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
     except ValueError as exc:
         fail(parser, exc)
-    run_check(
-        env_ids,
-        args.algo,
-        args.episodes,
-        args.seed,
-        args.out,
-        args.timesteps,
-        args.fresh,
-        not args.no_progress,
-        args.hyperparams,
-    )
+    try:
+        run_check(
+            env_ids,
+            args.algo,
+            args.episodes,
+            args.seed,
+            args.out,
+            args.timesteps,
+            args.fresh,
+            not args.no_progress,
+            args.hyperparams,
+        )
+    except UserError as exc:
+        fail(parser, exc)
+    except TrainingInterrupted as stopped:
+        print(
+            f"Interrupted at {stopped.result.timesteps:,} steps; saved a checkpoint in "
+            f"{stopped.result.run_dir}. Run the same command again to resume (the training "
+            "time so far is kept with the run).",
+            file=sys.stderr,
+        )
+        return stopped.exit_code
     return 0
 
 

@@ -1,30 +1,125 @@
-"""The main job on one environment with a tiny budget: table, findings, files."""
+"""The main job on one environment with a tiny budget: table, findings, files; budgets and
+hyperparameters against the runs on disk; training time kept across a resumed run."""
 
 from __future__ import annotations
 
+import json
+import signal
+
 import pytest
+import yaml
 
-from agents.check import main, run_check
+import envs
+from agents import train as train_mod
+from agents.check import TIME_FILE, main, record_segment, run_check
+from agents.common import UserError
+
+ARM = next(env_id for env_id in envs.ENV_IDS if "/TwoLinkArm-" in env_id)
+ARM_DIR = "train/" + ARM.replace("/", "-")
 
 
-def test_check_writes_the_comparison(tmp_path, capsys):
-    rows = run_check(
-        ["Lagrange/CrankSlider-v1"], episodes=2, out=tmp_path, timesteps=256, progress=False
-    )
+@pytest.fixture
+def tiny(tmp_path):
+    """Hyperparameters for rollouts of 64 steps on one env (fast, and several per run)."""
+    path = tmp_path / "tiny.yml"
+    path.write_text(yaml.safe_dump({ARM: {"n_envs": 1, "n_steps": 64, "batch_size": 64}}))
+    return path
+
+
+def check(out, timesteps, hyperparams=None, fresh=False):
+    return run_check(
+        [ARM], episodes=2, out=out, timesteps=timesteps, progress=False,
+        hyperparams=hyperparams, fresh=fresh,
+    )  # fmt: skip
+
+
+def test_check_writes_the_comparison(tmp_path, capsys, tiny):
+    out = tmp_path / "check"
+    rows = check(out, 128, tiny)
     assert [r.agent for r in rows] == ["random", "zero", "heuristic", "lqr", "ppo"]
-    out = capsys.readouterr().out
-    assert "| Lagrange/CrankSlider-v1 | lqr |" in out and "LQR" in out
+    printed = capsys.readouterr().out
+    assert f"| {ARM} | lqr |" in printed and "lqr" in printed
     for name in ("results.md", "results.csv", "comparison.png"):
-        assert (tmp_path / name).stat().st_size > 0
-    report = (tmp_path / "results.md").read_text()
-    assert "## Findings" in report and "| environment | agent |" in report
-    csv_lines = (tmp_path / "results.csv").read_text().splitlines()
+        assert (out / name).stat().st_size > 0
+    report = (out / "results.md").read_text()
+    assert "## Findings" in report and "| environment | agent | success [95 % CI] |" in report
+    # the header names the algorithm and the budget, and links the learning curve
+    run_dir = f"{ARM_DIR}/ppo_seed0_128steps"
+    assert f"- {ARM}: PPO, 128 steps (128 trained in " in report
+    assert f"[learning curve]({run_dir}/learning_curve.png)" in report
+    assert (out / run_dir / "learning_curve.png").exists()
+    assert all(sum(r.stats.endings().values()) == 2 for r in rows)
+    csv_lines = (out / "results.csv").read_text().splitlines()
     assert len(csv_lines) == 1 + len(rows)
-    # a second run resumes the finished training instead of repeating it
-    again = run_check(
-        ["Lagrange/CrankSlider-v1"], episodes=2, out=tmp_path, timesteps=256, progress=False
-    )
+    # a second run reuses the finished training, and its stored training time
+    again = check(out, 128, tiny)
     assert again[-1].stats.returns.tolist() == rows[-1].stats.returns.tolist()
+    assert again[-1].training.train_s == rows[-1].training.train_s > 0
+    assert (
+        again[-1].training.now_s == 0.0
+        and "0 s of it in this run" in (out / "results.md").read_text()
+    )
+
+
+def test_another_budget_trains_a_fresh_run_and_keeps_the_earlier(tmp_path, tiny):
+    first = check(tmp_path, 64, tiny)[-1].training
+    second = check(tmp_path, 192, tiny)[-1].training
+    assert (first.budget, first.timesteps) == (64, 64)
+    assert (second.budget, second.timesteps) == (192, 192)  # trained from 0, not from 64
+    assert first.run_dir != second.run_dir
+    for t in (first, second):
+        assert (tmp_path / t.run_dir / "model.zip").exists()
+    segments = json.loads((tmp_path / second.run_dir / TIME_FILE).read_text())["segments"]
+    assert [(s["from"], s["to"]) for s in segments] == [(0, 192)]
+
+
+def test_a_run_with_other_hyperparameters_is_refused_until_fresh(tmp_path, tiny, capsys):
+    run = check(tmp_path, 64, tiny)[-1].training
+    changed = tmp_path / "changed.yml"
+    changed.write_text(yaml.safe_dump({ARM: {"n_envs": 1, "n_steps": 64, "batch_size": 32}}))
+    with pytest.raises(UserError, match=r"batch_size: 64 in the run, 32 now.*--fresh"):
+        check(tmp_path, 64, changed)
+    argv = [ARM, "--timesteps", "64", "--hyperparams", str(changed), "--out", str(tmp_path)]
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main(argv + ["--episodes", "2", "--no-progress"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "--fresh" in err
+    retrained = check(tmp_path, 64, changed, fresh=True)[-1].training
+    config = yaml.safe_load((tmp_path / run.run_dir / "config.yml").read_text())
+    assert retrained.run_dir == run.run_dir and config["hyperparams"]["batch_size"] == 32
+
+
+class _StopAt(train_mod.GracefulStop):
+    """SIGINT once the run passes 100 steps (in its second 64-step rollout)."""
+
+    def _on_step(self) -> bool:
+        if self.model.num_timesteps > 100 and self.signum is None:
+            signal.raise_signal(signal.SIGINT)
+        return super()._on_step()
+
+
+@pytest.mark.slow
+def test_training_time_is_kept_across_an_interrupted_run(tmp_path, tiny, monkeypatch):
+    with monkeypatch.context() as patch:
+        patch.setattr(train_mod, "GracefulStop", _StopAt)
+        with pytest.raises(train_mod.TrainingInterrupted):
+            check(tmp_path, 256, tiny)
+    run_dir = tmp_path / ARM_DIR / "ppo_seed0_256steps"
+    (before,) = json.loads((run_dir / TIME_FILE).read_text())["segments"]
+    assert before["from"] == 0 and 0 < before["to"] < 256
+    training = check(tmp_path, 256, tiny)[-1].training
+    segments = json.loads((run_dir / TIME_FILE).read_text())["segments"]
+    assert [(s["from"], s["to"]) for s in segments] == [(0, before["to"]), (before["to"], 256)]
+    assert training.train_s == pytest.approx(sum(s["seconds"] for s in segments))
+    assert training.timed_steps == training.timesteps == 256
+
+
+def test_segments_past_the_resumed_checkpoint_are_dropped(tmp_path):
+    assert record_segment(tmp_path, 0, 1000, 2.0) == (2.0, 1000)
+    assert record_segment(tmp_path, 1000, 2000, 3.0) == (5.0, 2000)
+    assert record_segment(tmp_path, 1000, 1500, 1.0) == (3.0, 1500)  # resumed at 1000 again
+    assert record_segment(tmp_path, 0, 500, 0.5) == (0.5, 500)  # a fresh run
 
 
 @pytest.mark.parametrize(
