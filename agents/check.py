@@ -277,7 +277,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m agents.check",
         description="Check every environment with random, zero-torque and heuristic "
         "baselines, LQR and a short stable-baselines3 training; print a Markdown "
-        "comparison and write it with plots to --out.",
+        "comparison (how episodes ended, 95 % intervals: Wilson on success, Student t on "
+        "the mean return; 'A beats B' only where they separate) and write it with a CSV "
+        "and a figure to --out. Training and evaluation times are reported apart, one-off "
+        "compilation excluded; training time is kept with each run across resumes.",
     )
     parser.add_argument(
         "env_ids",
@@ -294,12 +297,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="YAML overriding the packaged hyperparameters (format of agents/hyperparams/*.yml)",
     )
-    parser.add_argument("--episodes", type=positive_int, default=20)
-    parser.add_argument("--seed", type=non_negative_int, default=0)
+    parser.add_argument(
+        "--episodes", type=positive_int, default=20, help="seeded episodes per agent"
+    )
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="first episode's seed")
     parser.add_argument(
         "--timesteps",
         type=positive_int,
-        help="training budget per env (default: the YAML's n_timesteps)",
+        help="training budget per env (default: the YAML's n_timesteps); see --fresh for "
+        "what a budget other than a run on disk does",
     )
     parser.add_argument("--out", default="runs/check", help="output directory")
     parser.add_argument(
