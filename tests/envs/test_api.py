@@ -161,7 +161,7 @@ def test_rendering_returns_frames_of_the_documented_shape(env_id):
     frame = env.render()
     assert frame.shape == (rendering.SIZE, rendering.SIZE, 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3  # something is drawn
-    env.step(env.action_space.sample())
+    env.step(np.ones(env.action_space.shape, np.float32))  # full input: it visibly moves
     assert not np.array_equal(env.render(), frame) or env_id.endswith("BeadOnRod-v1")
     env.close()
     human = gym.make(env_id, render_mode="human")
