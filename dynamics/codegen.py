@@ -27,6 +27,25 @@ class _Printer(PythonCodePrinter):
         return expr.name
 
 
+class _LanePrinter(_Printer):
+    """Scalar code that LLVM can run several rows at a time: sin and cos by the kernels'
+    branch-free `vsin`/`vcos` (libm's are calls, which numba never vectorises), small
+    integer powers as products."""
+
+    def _print_sin(self, expr):
+        return f"vsin({self._print(expr.args[0])})"
+
+    def _print_cos(self, expr):
+        return f"vcos({self._print(expr.args[0])})"
+
+    def _print_Pow(self, expr, rational=False):
+        base, e = expr.args
+        if e.is_Integer and 1 <= abs(int(e)) <= 4:
+            product = "*".join([f"({self._print(base)})"] * abs(int(e)))
+            return product if e > 0 else f"(1.0/({product}))"
+        return super()._print_Pow(expr, rational)
+
+
 class _VectorPrinter(NumPyPrinter):
     def _print_Symbol(self, expr):
         return expr.name
@@ -45,6 +64,69 @@ def _vectorized(targets_count: int, exprs: list, header: list[str]) -> str:
     lines.append(f"    A = ({', '.join(entries[:targets_count])},)")
     lines.append(f"    r = ({', '.join(entries[targets_count:])},)")
     lines.append("    return A, r")
+    return "\n".join(lines)
+
+
+def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
+    """Straight-line Gaussian elimination without pivoting of the KKT system a z = r held in
+    scalars a{i}_{j}, r{i}, skipping structural zeros: valid for the mass/constraint matrix
+    in its natural order (M positive definite, -B M^-1 B^T negative definite), as in
+    `System._derivative_columns`. A pivot below PIVOT_TOL times the largest entry of its
+    original row (singular to working precision) becomes NaN, so the row's result is NaN."""
+    nz = [list(row) for row in nonzero]
+    lines = []
+    for i in range(k):
+        terms = [f"abs(a{i}_{j})" for j in range(k) if nz[i][j]] or ["0.0"]
+        lines.append(f"s{i} = " + (terms[0] if len(terms) == 1 else f"max({', '.join(terms)})"))
+    for c in range(k):
+        lines.append(f"a{c}_{c} = a{c}_{c} if abs(a{c}_{c}) > PIVOT_TOL * s{c} else math.nan")
+        for i in range(c + 1, k):
+            if not nz[i][c]:
+                continue
+            lines.append(f"f = a{i}_{c} / a{c}_{c}")
+            for j in range(c + 1, k):
+                if nz[c][j]:
+                    lines.append(
+                        f"a{i}_{j} = a{i}_{j} - f * a{c}_{j}"
+                        if nz[i][j]
+                        else f"a{i}_{j} = -f * a{c}_{j}"
+                    )
+                    nz[i][j] = True
+            lines.append(f"r{i} = r{i} - f * r{c}")
+    for c in range(k - 1, -1, -1):
+        rest = "".join(f" - a{c}_{j} * z{j}" for j in range(c + 1, k) if nz[c][j])
+        lines.append(f"z{c} = (r{c}{rest}) / a{c}_{c}")
+    return lines
+
+
+def _lanes(n: int, nu: int, kkt: sp.Matrix, rhs: sp.Matrix, header: list[str]) -> str:
+    """`derivative_lanes(T, XS, U, p, D)`: D = dx/dt for rows held as columns (XS (2n, m),
+    U (n_u, m), T (m,)), one straight-line body per row with no calls, so that LLVM
+    evaluates several rows per instruction. The kernels' fixed-step integrators use it."""
+    k = kkt.shape[0]
+    printer = _LanePrinter({"fully_qualified_modules": True})
+    nonzero = [[not (kkt[i, j].is_number and kkt[i, j] == 0) for j in range(k)] for i in range(k)]
+    exprs = [kkt[i, j] for i in range(k) for j in range(k) if nonzero[i][j]] + list(rhs)
+    names = [f"a{i}_{j}" for i in range(k) for j in range(k) if nonzero[i][j]]
+    names += [f"r{i}" for i in range(k)]
+    body = ["t = T[b]"]
+    body += [f"q{i} = XS[{i}, b]" for i in range(n)] + [f"qd{i} = XS[{n + i}, b]" for i in range(n)]
+    body += [f"u{j} = U[{j}, b]" for j in range(nu)]
+    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c"), optimizations="basic")
+    body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in repl]
+    body += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, reduced)]
+    body += [f"a{i}_{j} = 0.0" for i in range(k) for j in range(k) if not nonzero[i][j]]
+    body += _solve_lines(k, nonzero)
+    body += [f"D[{i}, b] = qd{i}" for i in range(n)] + [f"D[{n + i}, b] = z{i}" for i in range(n)]
+    lines = [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def derivative_lanes(T, XS, U, p, D):",
+    ]
+    lines += ["    " + h for h in header]
+    lines.append("    for b in range(XS.shape[1]):")
+    lines += ["        " + line for line in body]
     return "\n".join(lines)
 
 
@@ -132,7 +214,7 @@ def generate(d: Derived, key: str) -> str:
         "",
         "import numpy",
         "import numpy as np",
-        "from numba import njit",
+        "from numba import njit, prange  # noqa: F401",
         "",
         f"KEY = {key!r}",
         f"NAME = {spec.name!r}",
@@ -213,5 +295,6 @@ def generate(d: Derived, key: str) -> str:
         )
     )
     parts.append(_vectorized(len(matrix_exprs), matrix_exprs + list(rhs), x_args + unpack_u))
+    parts.append(_lanes(n, nu, kkt, rhs, unpack_p))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

@@ -17,9 +17,11 @@ import difflib
 import math
 from types import ModuleType
 
+import numba
 import numpy as np
 
 from . import cache, checks
+from .methods import METHODS
 
 
 def check_parameters(model_name: str, names, defaults, positive, given: dict) -> np.ndarray:
@@ -193,27 +195,49 @@ class System:
         self._m.accelerations_batch(T, X, U, self._p, out)
         return self._finite("accelerations", out, T, X, U).reshape(lead + (self.n_q + self.n_c,))
 
-    def step(self, x, u=None, dt: float = 0.01, substeps: int = 1, t=0.0) -> np.ndarray:
-        """Advance by dt with `substeps` RK4 steps, u held constant (zero-order hold).
+    def step(
+        self, x, u=None, dt: float = 0.01, substeps: int = 1, t=0.0, method: str = "rk4"
+    ) -> np.ndarray:
+        """Advance by dt with `substeps` fixed steps of `method` ("rk4" or "dop853", see
+        `dynamics.methods`), u held constant (zero-order hold).
 
         dt: positive finite number, s; substeps: integer 1..checks.MAX_SUBSTEPS.
         Nonholonomic models are projected back onto their velocity constraints after each
         substep. Returns the new state (same shape as x, broadcast with u)."""
         dt = checks.time_step(self.name, dt)
         substeps = checks.substeps(self.name, substeps)
+        tableau = method_tableau(method)
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
-        self._m.rk4_batch(T, X, U, self._p, dt / substeps, substeps, out)
+        self._m.erk_batch(T, X, U, self._p, dt / substeps, substeps, *tableau, out, BLOCK)
         out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 
-    def step_unchecked(self, T, X, U, dt: float, substeps: int, out: np.ndarray) -> None:
+    def step_unchecked(
+        self,
+        T,
+        X,
+        U,
+        dt: float,
+        substeps: int,
+        out: np.ndarray,
+        method: str = "rk4",
+        num_threads: int = 1,
+    ) -> None:
         """`step` on contiguous float64 rows T (N,), X (N, 2n), U (N, n_u) into `out`,
-        without argument checks: the environments' hot path.
+        without argument checks: the environments' hot path. Blocks of BLOCK rows are
+        spread over `num_threads` threads (numba's); the result is the same bit for bit
+        for any number of threads.
 
         Never raises for a bad row: where the integration fails (a singular mass/constraint
         matrix, an overflow) that row of `out` holds NaN or inf; the caller must check."""
-        self._m.rk4_batch(T, X, U, self._p, dt / substeps, substeps, out)
+        a, w, c = method_tableau(method)
+        h = dt / substeps
+        if num_threads > 1 and X.shape[0] > BLOCK:
+            numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
+            self._m.erk_batch_parallel(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
+        else:
+            self._m.erk_batch(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
 
     def energy_terms_unchecked(self, T, X, out: np.ndarray) -> None:
         """`energy_terms` on contiguous float64 rows into `out` (N, 2), without checks."""
@@ -295,6 +319,19 @@ class System:
         B = np.zeros((2 * n, self.n_u))
         B[n:, :] = dz[:n, 2 * n :]
         return A, B
+
+
+BLOCK = 64
+"""Rows integrated together in vector lanes, and the unit of work of a thread
+(benchmarks/dynamics.py measures the choice)."""
+
+
+def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(a, b, c) of the integrator named `method`; ValueError naming the known ones."""
+    tableau = METHODS.get(method) if isinstance(method, str) else None
+    if tableau is None:
+        raise ValueError(f"Unknown integrator {method!r}; known: {', '.join(map(repr, METHODS))}.")
+    return tableau.a, tableau.b, tableau.c
 
 
 VECTORIZE_FROM = 512
