@@ -75,12 +75,15 @@ early never pays. Truncation: 200 steps (10 s). `info["is_success"]`: both wrapp
 errors below 0.1 rad and both rates below 0.5 rad/s.
 
 ## Arguments
-`gymnasium.make("Lagrange/TwoLinkArm-v1", control_period=0.05, substeps=25,
+`gymnasium.make("Lagrange/TwoLinkArm-v1", control_period=0.05, substeps=6,
 max_input=None, render_mode=None, **model_parameters)` with the parameters of
-`two_link_arm` by name (m1, m2, l, l1, l2, Ibar1, Ibar2, g). Integration: RK4, 25 substeps
-of 2 ms per 50 ms step; an unforced episode from the starting distribution keeps the energy
-within 1e-6 of the potential-energy range, inverted minus hanging (3e-7 measured over 100
-episodes, tests/envs/test_physics.py; 20 substeps gave 9e-7).
+`two_link_arm` by name (m1, m2, l, l1, l2, Ibar1, Ibar2, g). Integration
+(`integrator="dop853"`, or `"rk4"`): 6 fixed steps of DOP853's eighth-order method per 50 ms
+step (72 derivative evaluations); an unforced episode from the starting distribution keeps
+the energy within 3e-8 of the potential-energy range, inverted minus hanging (9e-9 measured
+over 100 episodes, tests/envs/test_physics.py; 4 steps gave 1e-6, the former RK4 x25 3e-7).
+`num_threads` (default: the cores available) spreads a vector env's copies over threads
+with the same result bit for bit.
 
 ## Version History
 * v1: divergence terminates with the early-end penalty (v0 truncated, so diverging paid);
@@ -165,7 +168,8 @@ TASK = Task(
     limits={"theta1_dot": RATE_LIMIT, "theta2_dot": RATE_LIMIT},
     operating_point={"theta1": "theta1*", "theta2": "theta2*"},
     control_period=0.05,
-    substeps=25,
+    substeps=6,
+    integrator="dop853",
     max_episode_steps=200,
     # measured (seed 0, 100 episodes): >= 99 % success up to 12x this region
     lqr=LQRHints(

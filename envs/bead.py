@@ -63,11 +63,13 @@ Truncation: 200 steps (10 s). `info["is_success"]`: |r - r*| < 0.05 rod_length /
 |r'| < 0.05 m/s.
 
 ## Arguments
-`gymnasium.make("Lagrange/BeadOnRod-v1", control_period=0.05, substeps=5, max_input=2.0,
+`gymnasium.make("Lagrange/BeadOnRod-v1", control_period=0.05, substeps=1, max_input=2.0,
 render_mode=None, **model_parameters)` with the parameters of `bead_on_driven_rod` by name
-(m, J, rod_length, g). Integration: RK4, 5 substeps of 10 ms per 50 ms step; an unforced
-episode keeps the energy within 1e-8 of m g rod_length / 2 (5e-9 measured over 100
-episodes, tests/envs/test_physics.py).
+(m, J, rod_length, g). Integration (`integrator="dop853"`, or `"rk4"`):
+one fixed step of DOP853's eighth-order method per 50 ms step (12 evaluations); an unforced
+episode keeps the energy within 5e-12 of m g rod_length / 2 (1.1e-12 measured over 100
+episodes, tests/envs/test_physics.py; the former RK4 x5 5e-9). `num_threads` as for
+TwoLinkArm.
 
 ## Version History
 * v1: leaving the rod pays the early-end penalty (v0's alive bonus alone let a falling
@@ -161,7 +163,8 @@ TASK = Task(
     limits={"r": rod_length, "r_dot": SPEED_LIMIT, "phi_dot": RATE_LIMIT},
     operating_point={"r": "r*"},  # the bead at rest at r* on the level rod
     control_period=0.05,
-    substeps=5,
+    substeps=1,
+    integrator="dop853",
     max_episode_steps=200,
     # >= 99 % success up to 3.5x this region
     lqr=LQRHints(

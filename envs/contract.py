@@ -5,10 +5,13 @@ point, inverse maps, action scaling)."""
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
+from dynamics.system import method_tableau
 
 from .layout import Layout, build_layout
 from .runtime import Runtime
@@ -16,18 +19,33 @@ from .task import Task
 
 
 def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
-    """A runtime of `n` rows of `task`; `options`: control_period, substeps, max_input and
-    the model's parameters by name."""
+    """A runtime of `n` rows of `task`; `options`: control_period, substeps, integrator
+    ("rk4" or "dop853"), num_threads (threads stepping the rows; default the cores this
+    process may use, None too; results are the same for any count), max_input and the
+    model's parameters by name."""
     if not isinstance(task, Task):
         raise TypeError(f"task must be an envs.Task, got {type(task).__name__}.")
     options = dict(options)
     period = options.pop("control_period", None)
     substeps = options.pop("substeps", None)
+    integrator = options.pop("integrator", None)
+    threads = options.pop("num_threads", None)
     max_input = options.pop("max_input", None)
     layout = build_layout(task, options, max_input)
     period = positive_float("control_period", task.control_period if period is None else period)
     substeps = positive_int("substeps", task.substeps if substeps is None else substeps)
-    return Runtime(layout, n, period, substeps)
+    integrator = task.integrator if integrator is None else integrator
+    method_tableau(integrator)  # ValueError naming the known integrators
+    threads = available_cores() if threads is None else positive_int("num_threads", threads)
+    return Runtime(layout, n, period, substeps, integrator, threads)
+
+
+def available_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
 
 
 def horizon(env, task: Task) -> int:
@@ -43,7 +61,7 @@ def horizon(env, task: Task) -> int:
 
 # ---- checking what users hand in ---------------------------------------------------------
 def positive_float(name: str, value) -> float:
-    if isinstance(value, (bool, complex, np.complexfloating)):
+    if isinstance(value, (bool, str, bytes, complex, np.complexfloating)):
         raise TypeError(f"{name} must be a real number, got {value!r}.")
     try:
         v = float(value)
@@ -149,6 +167,11 @@ class ContractMixin:
     @property
     def substeps(self) -> int:
         return self._rt.substeps
+
+    @property
+    def integrator(self) -> str:
+        """The fixed-step method of the `substeps` per control period: "rk4" or "dop853"."""
+        return self._rt.integrator
 
     @property
     def max_input(self) -> np.ndarray:

@@ -5,7 +5,8 @@ operations, `reset_rows` (chosen rows to given states and goals) and `step` (eve
 one control period). The single env is a runtime of one row and the native vector env one
 of N rows, each a thin Gymnasium wrapper; nothing else touches these arrays.
 
-Per step: clip and scale the actions, RK4 through the compiled system, check every row for
+Per step: clip and scale the actions, the task's integrator (RK4 or DOP853 substeps,
+spread over `num_threads`) through the compiled system, check every row for
 divergence, then evaluate the task on the post-step state: the observation (one kernel for
 the declared features, then each derived feature), the reward terms (clipped into their
 declared bounds and summed), success and failure. A row that fails or diverges terminates,
@@ -141,12 +142,22 @@ class Runtime:
     """N rows of a task (see the module docstring). Public arrays are read-only views for
     wrappers; `reset_rows` and `step` are the only writers."""
 
-    def __init__(self, layout: Layout, n: int, control_period: float, substeps: int):
+    def __init__(
+        self,
+        layout: Layout,
+        n: int,
+        control_period: float,
+        substeps: int,
+        integrator: str = "rk4",
+        num_threads: int = 1,
+    ):
         self.layout = layout
         self.system = s = layout.system
         self.n = n
         self.control_period = control_period
         self.substeps = substeps
+        self.integrator = integrator
+        self.num_threads = num_threads
         n_x = s.state_size
         self.X = np.zeros((n, n_x))
         self._X_next = np.zeros((n, n_x))
@@ -221,8 +232,9 @@ class Runtime:
         if not apply_actions(actions, lay.max_input, lay.actuated, self.A, self.U):
             raise ValueError("actions contain NaN or inf")
         self.system.step_unchecked(
-            self.T, self.X, self.U, self.control_period, self.substeps, self._X_next
-        )
+            self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
+            self.integrator, self.num_threads,
+        )  # fmt: skip
         self.X, self._X_next = self._X_next, self.X
         self.T += self.control_period
         self.steps += 1

@@ -194,6 +194,7 @@ class Task:
     operating_point: Mapping[str, Any] | Callable | None = None
     control_period: float = 0.05
     substeps: int = 10
+    integrator: str = "rk4"  # "rk4" or "dop853" (dynamics.methods), `substeps` of it
     max_episode_steps: int = 200
     lqr: LQRHints = field(default_factory=LQRHints)
     heuristic: Heuristic | None = None
