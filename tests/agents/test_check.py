@@ -36,7 +36,8 @@ def check(out, timesteps, hyperparams=None, fresh=False):
 def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     out = tmp_path / "check"
     rows = check(out, 128, tiny)
-    assert [r.agent for r in rows] == ["random", "zero", "heuristic", "lqr", "ppo"]
+    agents = [r.agent for r in rows]
+    assert agents[:4] == ["random", "zero", "heuristic", "lqr"] and agents[-1] == "ppo"
     printed = capsys.readouterr().out
     assert f"| {ARM} | lqr |" in printed and "lqr" in printed
     for name in ("results.md", "results.csv", "comparison.png"):
