@@ -82,8 +82,8 @@ max_input=None, render_mode=None, **model_parameters)` with the parameters of
 step (72 derivative evaluations); an unforced episode from the starting distribution keeps
 the energy within 3e-8 of the potential-energy range, inverted minus hanging (9e-9 measured
 over 100 episodes, tests/envs/test_physics.py; 4 steps gave 1e-6, the former RK4 x25 3e-7).
-`num_threads` (default: the cores available) spreads a vector env's copies over threads
-with the same result bit for bit.
+`num_threads` (default 1) spreads a vector env's copies over threads with the same result
+bit for bit.
 
 ## Version History
 * v1: divergence terminates with the early-end penalty (v0 truncated, so diverging paid);

@@ -20,9 +20,13 @@ from .task import Task
 
 def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
     """A runtime of `n` rows of `task`; `options`: control_period, substeps, integrator
-    ("rk4" or "dop853"), num_threads (threads stepping the rows; default the cores this
-    process may use, None too; results are the same for any count), max_input and the
-    model's parameters by name."""
+    ("rk4" or "dop853"), num_threads (threads stepping the rows, default 1; results are the
+    same for any count), max_input and the model's parameters by name.
+
+    One thread by default: on a shared machine (two cores, other processes busy) a second
+    thread waits a scheduler timeslice for a core at every step, measured 0.12x the speed
+    of one thread at N = 1024 and 0.7x at 16384 (benchmarks/envs.py). Give
+    `num_threads=available_cores()` where the cores are yours."""
     if not isinstance(task, Task):
         raise TypeError(f"task must be an envs.Task, got {type(task).__name__}.")
     options = dict(options)
@@ -36,7 +40,7 @@ def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
     substeps = positive_int("substeps", task.substeps if substeps is None else substeps)
     integrator = task.integrator if integrator is None else integrator
     method_tableau(integrator)  # ValueError naming the known integrators
-    threads = available_cores() if threads is None else positive_int("num_threads", threads)
+    threads = 1 if threads is None else positive_int("num_threads", threads)
     return Runtime(layout, n, period, substeps, integrator, threads)
 
 
