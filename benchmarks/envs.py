@@ -7,8 +7,13 @@ move: `gymnasium.make` time per id (warm model cache; numba's import, paid once 
 is reported apart), single-env steps/s through `gymnasium.make` with its default wrappers
 (actions drawn beforehand, never `Box.sample`), env-steps/s of the native vector env
 (`make_vec(..., vectorization_mode="vector_entry_point")`) at N = 64, 1024, 16384 against a
-`SyncVectorEnv` of Acrobot-v1 copies, and the relative energy error of one unforced
-episode. Acrobot-v1's energy is measured with this project's `two_link_arm` model at its
+`SyncVectorEnv` of Acrobot-v1 copies (and, when they are installed, EnvPool's and gymnax's
+Acrobot-v1 on this CPU, float32 and float64; none is a dependency of the project), with
+derivative evaluations per second (an env step's evaluations: Acrobot-v1's one RK4 step
+makes 4, ours substeps x stages of the env's integrator), and the relative energy error of
+one unforced episode. The key contenders are measured in alternating rounds (medians; the
+ratio to SyncVectorEnv is taken within each round), so a shared machine's load cancels.
+Acrobot-v1's energy is measured with this project's `two_link_arm` model at its
 parameters (m = 1, l = 1, lc = 0.5, I = 1 about the mass centre, g = 9.8; its second
 angle is relative, ours absolute), from the same large swing as ours.
 """
@@ -29,6 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import dynamics  # noqa: E402
 import envs  # noqa: E402
+from dynamics.methods import METHODS  # noqa: E402
+from envs.contract import available_cores  # noqa: E402
 
 SIZES = (64, 1024, 16384)
 SWING = np.array([1.5, 1.5, 0.0, 0.0])  # a large swing (absolute angles), released at rest
@@ -118,6 +125,139 @@ def acrobot_v1_drift(steps: int = 500) -> float:
     return worst / scale
 
 
+def evaluations(env) -> int:
+    """Derivative evaluations per env step."""
+    return env.substeps * METHODS[env.integrator].stages
+
+
+def envpool_vector(n: int):
+    """EnvPool's Acrobot-v1 x n on the cores available, as a stepping function, or None."""
+    try:
+        import envpool
+    except ImportError:
+        return None
+    pool = envpool.make(
+        "Acrobot-v1", env_type="gymnasium", num_envs=n, num_threads=min(n, available_cores())
+    )
+    pool.reset()
+    actions = [np.random.default_rng(i).integers(0, 3, n).astype(np.int32) for i in range(4)]
+    return lambda k: pool.step(actions[k % 4])
+
+
+def gymnax_rollout(n: int, x64: bool):
+    """gymnax's Acrobot-v1 x n (jit + vmap + scan over 50 steps, random actions) as a
+    stepping function that takes 50 steps per call, or None."""
+    try:
+        import gymnax
+        import jax
+    except ImportError:
+        return None
+    jax.config.update("jax_enable_x64", x64)
+    env, params = gymnax.make("Acrobot-v1")
+
+    def run(key, state):
+        def body(state, k):
+            a = jax.random.randint(k, (n,), 0, 3)
+            keys = jax.random.split(k, n)
+            out = jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, state, a, params)
+            return out[1], out[2]
+
+        return jax.lax.scan(body, state, jax.random.split(key, 50))
+
+    key = jax.random.PRNGKey(0)
+    _, state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(key, n), params)
+    fn = jax.jit(run)
+    fn(key, state)[1].block_until_ready()
+
+    def step(k):
+        jax.config.update("jax_enable_x64", x64)  # the other precision may have run last
+        fn(jax.random.PRNGKey(k), state)[1].block_until_ready()
+
+    return step
+
+
+def rate(step, per_call: int, seconds: float, min_calls: int = 3) -> float:
+    """Env-steps/s of a stepping function that advances `per_call` env-steps per call."""
+    step(0)
+    k, start = 0, time.perf_counter()
+    while True:
+        step(k)
+        k += 1
+        elapsed = time.perf_counter() - start
+        if elapsed > seconds and k >= min_calls:
+            return k * per_call / elapsed
+
+
+def vector_table(sizes, seconds: float, rounds: int = 3) -> None:
+    """Env-steps/s (ratio to SyncVectorEnv of Acrobot-v1) and derivative evaluations/s at
+    each N: the key contenders in alternating rounds, then every Lagrange env once."""
+    arm_id = "Lagrange/TwoLinkArm-v1"
+    arm_evals = evaluations(gym.make(arm_id).unwrapped)
+    cores = available_cores()
+    names = [
+        ("Acrobot-v1 SyncVectorEnv", 4),
+        (f"EnvPool Acrobot-v1 ({cores} threads)", 4),
+        ("gymnax Acrobot-v1 CPU float32", 4),
+        ("gymnax Acrobot-v1 CPU float64", 4),
+        (f"{arm_id} native ({cores} threads)", arm_evals),
+        (f"{arm_id} native (1 thread)", arm_evals),
+    ]
+    cells: dict[str, list[str]] = {name: [] for name, _ in names}
+    for n in sizes:
+        sync = gym.vector.SyncVectorEnv([lambda: gym.make("Acrobot-v1")] * n)
+        native = {
+            t: gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point", num_threads=t)
+            for t in (cores, 1)
+        }
+        steppers = [
+            (vector_stepper(sync), n),
+            (envpool_vector(n), n),
+            (gymnax_rollout(n, x64=False), 50 * n),
+            (gymnax_rollout(n, x64=True), 50 * n),
+            (vector_stepper(native[cores]), n),
+            (vector_stepper(native[1]), n),
+        ]
+        runs = [[] for _ in steppers]
+        for _ in range(rounds):
+            for i, (step, per_call) in enumerate(steppers):
+                if step is not None:
+                    runs[i].append(rate(step, per_call, seconds / rounds))
+        base = np.array(runs[0])
+        for (name, evals), r in zip(names, runs):
+            if not r:
+                cells[name].append("not installed")
+                continue
+            v, ratio = np.median(r), np.median(np.array(r) / base)
+            cells[name].append(f"{v:,.0f} ({ratio:.1f}x) {v * evals:.1e}/s")
+        sync.close()
+    print("\n| env-steps/s (vs SyncVectorEnv, same rounds) and derivative evaluations/s "
+          "| evaluations per step | " + " | ".join(f"N = {n}" for n in sizes) + " |")  # fmt: skip
+    print("|---|---|" + "---|" * len(sizes))
+    for name, evals in names:
+        print(f"| {name} | {evals} | " + " | ".join(cells[name]) + " |")
+    print("\n| env (native vector env, default threads) | evaluations per step | "
+          + " | ".join(f"N = {n}" for n in sizes) + " |")  # fmt: skip
+    print("|---|---|" + "---|" * len(sizes))
+    for env_id in envs.ENV_IDS:
+        row = []
+        for n in sizes:
+            vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+            v = vector_steps_per_second(vec, seconds / rounds)
+            row.append(f"{v:,.0f} {v * evaluations(vec.unwrapped):.1e}/s")
+        print(f"| {env_id} | {evaluations(gym.make(env_id).unwrapped)} | " + " | ".join(row) + " |")
+
+
+def vector_stepper(vec):
+    """A vector env as a stepping function over pre-drawn actions (reset once)."""
+    rng = np.random.default_rng(0)
+    if vec.single_action_space.shape == ():
+        actions = [vec.action_space.sample() for _ in range(4)]
+    else:
+        actions = [rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32) for _ in range(4)]
+    vec.reset(seed=0)
+    return lambda k: vec.step(actions[k % 4])
+
+
 def make_time(env_id: str) -> float:
     start = time.perf_counter()
     gym.make(env_id)
@@ -163,31 +303,20 @@ def main(argv: list[str] | None = None) -> None:
         ratio = np.median(np.array(sps[env_id]) / base)
         print(f"| {env_id} | {made[env_id]:.3f} | {np.median(sps[env_id]):,.0f} | {ratio:.2f}x |")
 
-    print("\n| env | " + " | ".join(f"N = {n}" for n in args.sizes) + " |")
-    print("|---|" + "---|" * len(args.sizes))
-    sync = []
-    for n in args.sizes:
-        vec = gym.vector.SyncVectorEnv([lambda: gym.make("Acrobot-v1")] * n)
-        sync.append(vector_steps_per_second(vec, seconds))
-        vec.close()
-    print("| Acrobot-v1 SyncVectorEnv | " + " | ".join(f"{s:,.0f}" for s in sync) + " |")
-    for env_id in envs.ENV_IDS:
-        cells = []
-        for n, s in zip(args.sizes, sync):
-            vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
-            v = vector_steps_per_second(vec, seconds)
-            cells.append(f"{v:,.0f} ({v / s:.0f}x)")
-        print(f"| {env_id} native | " + " | ".join(cells) + " |")
-
-    print("\n| env | control period (s) | substeps | relative energy error, unforced episode |")
-    print("|---|---|---|---|")
-    print(f"| Acrobot-v1 (large swing, 100 s) | 0.2 | 1 | {acrobot_v1_drift():.1e} |")
+    vector_table(args.sizes, seconds)
+    print("\n| env | control period (s) | integrator x substeps | evaluations per step "
+          "| relative energy error, unforced episode |")  # fmt: skip
+    print("|---|---|---|---|---|")
+    print(f"| Acrobot-v1 (large swing, 100 s) | 0.2 | rk4 x1 | 4 | {acrobot_v1_drift():.1e} |")
+    arm = gym.make("Lagrange/TwoLinkArm-v1").unwrapped
     swing = unforced_drift("Lagrange/TwoLinkArm-v1", state=SWING, episodes=1)
-    print(f"| Lagrange/TwoLinkArm-v1 (same swing, 10 s) | 0.05 | 25 | {swing:.1e} |")
+    print(f"| Lagrange/TwoLinkArm-v1 (same swing, 10 s) | 0.05 | {arm.integrator} x "
+          f"{arm.substeps} | {evaluations(arm)} | {swing:.1e} |")  # fmt: skip
     for env_id in envs.ENV_IDS:
         u = gym.make(env_id).unwrapped
         drift = unforced_drift(env_id)
-        print(f"| {env_id} (own starts) | {u.control_period} | {u.substeps} | {drift:.1e} |")
+        print(f"| {env_id} (own starts) | {u.control_period} | {u.integrator} x {u.substeps} "
+              f"| {evaluations(u)} | {drift:.1e} |")  # fmt: skip
 
 
 if __name__ == "__main__":
