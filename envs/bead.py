@@ -40,15 +40,19 @@ ValueError, complex ones TypeError.
 
 | Term | Min | Max | Meaning |
 |---|---|---|---|
-| alive | 1 | 1 | 1 per step |
-| distance | -3.24 | 0 | -((r - r*) / half-length)^2 |
-| angle | -0.987 | 0 | -0.1 phi^2 |
+| alive | 1 | 1 | 1 per step on the rod |
+| distance | -1 | 0 | -((r - r*) / half-length)^2, at most 1 |
+| precision | -1 | 0 | -|r - r*| / half-length, at most 1 |
+| angle | -0.1 | 0 | -0.1 phi^2, at most 0.1 |
 | effort | -0.001 | 0 | -0.001 action^2 |
 
 ## Rewards
-On the state after the step, the sum of `alive` = 1, `distance` = -((r - r*) /
-(rod_length / 2))^2, `angle` = -0.1 phi^2 (phi wrapped to [-pi, pi)) and `effort` =
--0.001 action^2.
+On the state after the step, the sum of `alive` = 1, `distance` = -e^2 and `precision` =
+-|e|, with e = (r - r*) / (rod_length / 2) (each at most 1: the runtime clips terms into
+their bounds), `angle` = -0.1 phi^2 (phi wrapped to [-pi, pi), at most 0.1) and `effort` =
+-0.001 action^2. The precision term keeps paying for the last centimetres, where the
+quadratic's slope vanishes (PPO, seed 0, 50 episodes: 12-16 % success without it at 100k
+steps, 26 % with it at 100k, 100 % with it at 200k).
 
 ## Starting State
 r uniform within +-0.5 of the half-length, phi uniform in [-0.1, 0.1] rad, rates 0; the
@@ -58,7 +62,7 @@ target r* uniform within +-0.8 of the half-length. `reset(options={"state": x, "
 ## Episode End
 Termination: the bead leaves the rod, |r| > rod_length / 2, or divergence (a non-finite
 state, |r| > rod_length or a rate beyond its bound; `info["diverged"]`); that step's reward
-adds (steps left) x (the lowest reward a step can pay, -3.23), so ending early never pays.
+adds (steps left) x (the lowest reward a step can pay, -1.10), so ending early never pays.
 Truncation: 200 steps (10 s). `info["is_success"]`: |r - r*| < 0.05 rod_length / 2 and
 |r'| < 0.05 m/s.
 
@@ -73,7 +77,8 @@ TwoLinkArm.
 
 ## Version History
 * v1: leaving the rod pays the early-end penalty (v0's alive bonus alone let a falling
-  bead end a bad episode early); built on the task declaration.
+  bead end a bad episode early); a precision term; distance and angle terms bounded;
+  built on the task declaration.
 * v0: initial version.
 """
 
@@ -96,14 +101,13 @@ DISTANCE_TOLERANCE = 0.05
 """Success: |r - r*| below this fraction of the half-length ..."""
 SPEED_TOLERANCE = 0.05
 """... and |r'| below this (m/s)."""
-WORST_DISTANCE = 1 + TARGET_RANGE
-"""The largest |r - r*| / half-length on the rod."""
+
 
 
 def reward(x, a, g, p):
     e = (x[:, 0] - g[:, 0]) / (p.rod_length / 2)
     phi = wrap(x[:, 1])
-    return np.ones_like(e), -e * e, -0.1 * phi * phi, -0.001 * a[:, 0] ** 2
+    return np.ones_like(e), -e * e, -np.abs(e), -0.1 * phi * phi, -0.001 * a[:, 0] ** 2
 
 
 def success(x, a, g, p):
@@ -151,9 +155,10 @@ TASK = Task(
     ),
     reward=reward,
     terms=(
-        Term("alive", 1.0, 1.0, "1 per step"),
-        Term("distance", -(WORST_DISTANCE**2), 0.0, "-((r - r*) / half-length)^2"),
-        Term("angle", -0.1 * np.pi**2, 0.0, "-0.1 phi^2"),
+        Term("alive", 1.0, 1.0, "1 per step on the rod"),
+        Term("distance", -1.0, 0.0, "-((r - r*) / half-length)^2, at most 1"),
+        Term("precision", -1.0, 0.0, "-|r - r*| / half-length, at most 1"),
+        Term("angle", -0.1, 0.0, "-0.1 phi^2, at most 0.1"),
         Term("effort", -0.001, 0.0, "-0.001 action^2"),
     ),
     success=success,
@@ -172,6 +177,6 @@ TASK = Task(
         region={"r": 0.1, "phi": 0.05, "r_dot": 0.1, "phi_dot": 0.1},
     ),
     heuristic=Heuristic("cascaded PD (ball and beam)", "agents.policies:BeadCascadePolicy"),
-    hyperparams={"ppo": {"n_timesteps": 100_000}},
+    hyperparams={"ppo": {"n_timesteps": 200_000}},  # 100 % success over 50 episodes, seed 0
     draw=draw,
 )

@@ -99,7 +99,7 @@ import numpy as np
 from dynamics import wrap
 
 from . import rendering
-from .task import Angle, AngleError, Derived, Goal, LQRHints, Task, Term, Value
+from .task import Angle, Goal, LQRHints, Task, Term, Value
 
 LEAN_LIMIT = np.pi / 6
 """The episode terminates when |theta - pi/2| (the lean from upright) exceeds this (rad)."""
@@ -123,12 +123,7 @@ def reward(x, a, g, p):
     lean = x[:, 2] - 0.5 * np.pi
     effort = -0.001 * (a[:, 0] ** 2 + a[:, 1] ** 2)
     alive = np.ones_like(lean)
-    tracking = -np.abs(speed_error) - np.abs(heading_error)
-    return alive, -(speed_error**2), -(heading_error**2), tracking, -lean * lean, effort
-
-
-def speed_error(x, a, g, p):
-    return -p.r * x[:, 9] - g[:, 0]
+    return alive, -(speed_error**2), -(heading_error**2), -lean * lean, effort
 
 
 def success(x, a, g, p):
@@ -186,15 +181,12 @@ TASK = Task(
         Value("psi_dot", unit="rad/s"),
         Value("v*"),
         Angle("phi*"),
-        Derived("v - v*", speed_error, -4.0, 4.0, "m/s"),
-        AngleError("phi", "phi*"),
     ),
     reward=reward,
     terms=(
         Term("alive", 1.0, 1.0, "1 per step"),
         Term("speed", -4.0, 0.0, "-(v - v*)^2, at most 4"),
         Term("heading", -(np.pi**2), 0.0, "-(phi - phi*)^2"),
-        Term("precision", -2.0 - np.pi, 0.0, "-|v - v*| - |phi - phi*|, at most 2 + pi"),
         Term("lean", -(LEAN_LIMIT**2), 0.0, "-(theta - pi/2)^2"),
         Term("effort", -0.002, 0.0, "-0.001 |action|^2"),
     ),
