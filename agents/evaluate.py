@@ -29,7 +29,7 @@ from .common import (
 )
 from .policies import RandomPolicy, SB3Policy, ZeroPolicy
 
-BASELINES = ("random", "zero", "heuristic", "lqr")
+BASELINES = ("random", "zero", "heuristic", "lqr", "plan")
 
 
 def heuristic_of(env_id: str):
@@ -118,6 +118,10 @@ def make_agent(name: str, env, seed: int = 0):
         from .lqr import LQRPolicy
 
         return LQRPolicy(env)
+    if name == "plan":  # trajectory optimisation + time-varying LQR + LQR
+        from .tvlqr import PlanPolicy
+
+        return PlanPolicy(env)
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
         return SB3Policy.load(path)

@@ -46,6 +46,7 @@ def _register_builtins() -> tuple[str, ...]:
     builtins = {
         "Lagrange/TwoLinkArm-v1": arm.TASK,
         "Lagrange/Acrobot-v1": acrobot.TASK,
+        "Lagrange/Acrobot-v2": acrobot.TASK_V2,
         "Lagrange/RollingDisk-v1": disk.TASK,
         "Lagrange/BeadOnRod-v1": bead.TASK,
         "Lagrange/CrankSlider-v1": crank.TASK,

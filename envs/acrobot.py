@@ -1,10 +1,23 @@
-"""Lagrange/Acrobot-v1: swing the two-link arm up with its elbow motor alone and balance it.
+"""Lagrange/Acrobot-v2 (and -v1): swing the two-link arm up with its elbow motor alone and
+balance it.
 
 ## Description
 The two-link arm of section 7.4 (model `two_link_arm`, defaults: two uniform 1 kg, 1 m
 rods) with the shoulder motor removed: only the elbow motor M2 (link 1 on link 2) acts.
 Its 3 N*m are too small to hold link 2 horizontal (m2 l2 g = 4.9 N*m for the default
 arm), so the arm must be swung up by pumping energy, then balanced inverted.
+
+Acrobot-v2, the default, gives the elbow 2 m2 g l2 (9.81 N*m for the default arm): the ratio
+2.0 of elbow torque to the elbow link's gravity torque of Spong's and Drake's acrobots (the
+published swing-up-and-balance setups span 2.0 to 3.8; v1's 3 N*m is 0.61). The shoulder
+is still free, so what the elbow can hold is unchanged in kind: gravity is the only moment
+about the shoulder (the elbow torque acts between the links), so every static equilibrium
+has the arm's mass centre on the vertical through the shoulder, m1 l1 sin theta1 +
+m2 (l sin theta1 + l2 sin theta2) = 0, i.e. sin theta2 = -3 sin theta1 for the default arm.
+No elbow torque holds link 1 more than asin(1/3) = 19.5 deg off the vertical (hanging or
+inverted), nor the arm with its mass centre off the shoulder's vertical; the poses it can
+hold need |M2| = m2 g l2 |sin theta2| <= 4.9 N*m. The tables below are v1's; v2 differs only
+in the limit of M2.
 
 ```
         A (shoulder, free)    theta1, theta2: absolute angles of the links from
@@ -71,12 +84,17 @@ former RK4 x25); an unforced episode from the starting distribution keeps the en
 tests/envs/test_physics.py). `num_threads` as for TwoLinkArm.
 
 ## Version History
+* v2: elbow limit 2 m2 g l2 (9.81 N*m for the default arm) instead of 3 N*m, so the task is
+  solvable by model-based control (trajectory optimisation + TVLQR: `python -m agents.plan
+  Lagrange/Acrobot-v2`); `Lagrange/Acrobot-v1` keeps 3 N*m.
 * v1: divergence terminates with the early-end penalty (v0 truncated, so diverging paid);
   built on the task declaration.
 * v0: initial version.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -150,3 +168,17 @@ TASK = Task(
     hyperparams={"ppo": {"n_timesteps": 150_000, "gamma": 0.99}},
     draw=draw,
 )
+
+
+def elbow_limit_v2(p) -> tuple[float]:
+    """Acrobot-v2's elbow limit: twice the elbow link's gravity torque m2 g l2, N*m."""
+    return (2.0 * p.m2 * p.g * p.l2,)
+
+
+TASK_V2 = dataclasses.replace(
+    TASK,
+    max_input=elbow_limit_v2,
+    # trajectory optimisation + TVLQR (agents.plan): a 4 s swing-up from the hanging start
+    hyperparams={**TASK.hyperparams, "plan": {"horizon": 4.0}},
+)
+"""Acrobot-v2: TASK with the elbow limit of Spong's and Drake's acrobots (see above)."""
