@@ -39,6 +39,7 @@ from .common import (
     positive_int,
     register_envs,
     set_torch_threads,
+    task_of,
     write_text_atomic,
 )
 from .evaluate import BASELINES, evaluate, heuristic_of
@@ -156,9 +157,10 @@ def check_env(
     """Every baseline, LQR and the trained agent on one environment."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
+    plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
     rows = []
     for name in BASELINES:
-        if name == "heuristic" and heuristic is None:
+        if (name == "heuristic" and heuristic is None) or (name == "plan" and not plans):
             continue
         stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
         note = heuristic.description if name == "heuristic" else ""

@@ -62,6 +62,7 @@ def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     )
 
 
+@pytest.mark.slow  # trains twice
 def test_another_budget_trains_a_fresh_run_and_keeps_the_earlier(tmp_path, tiny):
     first = check(tmp_path, 64, tiny)[-1].training
     second = check(tmp_path, 192, tiny)[-1].training
@@ -74,6 +75,7 @@ def test_another_budget_trains_a_fresh_run_and_keeps_the_earlier(tmp_path, tiny)
     assert [(s["from"], s["to"]) for s in segments] == [(0, 192)]
 
 
+@pytest.mark.slow  # trains twice
 def test_a_run_with_other_hyperparameters_is_refused_until_fresh(tmp_path, tiny, capsys):
     run = check(tmp_path, 64, tiny)[-1].training
     changed = tmp_path / "changed.yml"

@@ -37,12 +37,12 @@ def rollout(env, seed: int, steps: int, action_seed: int = 0):
 def test_ids_are_registered_with_limits_and_vector_entry_points():
     assert IDS == [
         "Lagrange/TwoLinkArm-v1",
-        "Lagrange/Acrobot-v1",
+        "Lagrange/Acrobot-v2",
         "Lagrange/RollingDisk-v1",
         "Lagrange/BeadOnRod-v1",
         "Lagrange/CrankSlider-v1",
     ]
-    for env_id in IDS:
+    for env_id in IDS + ["Lagrange/Acrobot-v1"]:
         spec = gym.spec(env_id)
         assert spec.max_episode_steps > 0
         assert spec.vector_entry_point is not None
