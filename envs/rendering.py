@@ -8,6 +8,7 @@ coordinates are metres with y up; `Frame2D` and `Camera` map them to pixels.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -35,13 +36,24 @@ def _pygame():
 
 
 class Viewer:
-    """A window ("human") or an off-screen canvas ("rgb_array") showing one frame per call."""
+    """A window ("human") or an off-screen canvas ("rgb_array") showing one frame per call.
+
+    rgb_array needs no display (pygame surfaces only, as Gymnasium's classic control);
+    human needs one, and warns when SDL found none and shows the frames nowhere."""
 
     def __init__(self, render_mode: str, fps: int, size: int = SIZE):
         pygame, _ = _pygame()
         self.render_mode, self.fps, self.size = render_mode, fps, size
-        pygame.display.init()
         if render_mode == "human":
+            pygame.display.init()
+            driver = pygame.display.get_driver()
+            if driver in ("dummy", "offscreen") and "SDL_VIDEODRIVER" not in os.environ:
+                import gymnasium
+
+                gymnasium.logger.warn(
+                    f"render_mode='human' found no display (SDL chose the {driver!r} video "
+                    "driver), so no window opens; use render_mode='rgb_array' for frames."
+                )
             self.screen = pygame.display.set_mode((size, size))
         else:
             self.screen = pygame.Surface((size, size))

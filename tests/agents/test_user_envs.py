@@ -59,3 +59,24 @@ def test_train_command_on_a_user_system(tmp_path, capsys):
     assert train.main(argv) == 0
     assert (tmp_path / "model.zip").is_file()
     assert "Examples/CartPole-v0" in capsys.readouterr().out
+
+
+def test_a_model_trained_on_another_env_is_one_clear_line(tmp_path, capsys):
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    PPO("MlpPolicy", gym.make("Lagrange/BeadOnRod-v1"), device="cpu").save(tmp_path / "model")
+    with pytest.raises(SystemExit) as exc:
+        evaluate.main(["Lagrange/TwoLinkArm-v1", "--agent", str(tmp_path / "model.zip")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and len(err) == 1
+    assert "trained on another environment" in err[0]
+
+
+def test_a_file_that_is_no_model_is_one_clear_line(tmp_path, capsys):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a model")
+    with pytest.raises(SystemExit):
+        evaluate.main(["Lagrange/BeadOnRod-v1", "--agent", str(notes)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not a PPO, SAC or TD3 model" in err[0]

@@ -293,3 +293,26 @@ def test_diverging_simulation_terminates_with_finite_observation():
         if term:
             break
     assert term and not trunc and info["diverged"]
+
+
+def test_rendering_without_a_display_is_quiet_for_arrays_and_says_so_for_windows():
+    import subprocess
+    import sys
+
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        pytest.skip("a display is available")
+    env = {k: v for k, v in os.environ.items() if k != "SDL_VIDEODRIVER"}
+
+    def run(mode: str) -> subprocess.CompletedProcess:
+        code = (
+            "import gymnasium as gym, envs\n"
+            f"e = gym.make('Lagrange/BeadOnRod-v1', render_mode={mode!r}); e.reset(seed=0)\n"
+            "print(None if e.render() is None else e.render().shape)\n"
+        )
+        return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+
+    arrays = run("rgb_array")
+    assert arrays.returncode == 0 and arrays.stdout.strip() == "(500, 500, 3)"
+    assert arrays.stderr == ""  # no display opened, nothing printed
+    window = run("human")
+    assert window.returncode == 0 and "found no display" in window.stderr
