@@ -48,6 +48,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
         )
         self._ready = False
+        self._horizon: int | None = None
         self._viewer: rendering.Viewer | None = None
         self._history: list[np.ndarray] = []
 
@@ -74,7 +75,9 @@ class LagrangianEnv(ContractMixin, gym.Env):
         if not np.isfinite(a).all():
             raise ValueError(f"Action contains NaN or inf: {action!r}.")
         rt = self._rt
-        diverged = rt.step(a.reshape(1, -1), horizon(self, self.task))
+        if self._horizon is None:  # the registry's limit: known once make has set the spec
+            self._horizon = horizon(self, self.task)
+        diverged = rt.step(a.reshape(1, -1), self._horizon)
         terminated = bool(rt.terminated[0])
         info = self._info(diverged=diverged)
         if self.render_mode == "human":

@@ -22,7 +22,14 @@ from .task import Angle, AngleError, Derived, Task, Value, resolve
 
 # column operations of the observation kernel: (op, source, second source)
 OP_VALUE, OP_COS, OP_SIN, OP_COS_DIFF, OP_SIN_DIFF = range(5)
-ENV_OPTIONS = ("render_mode", "control_period", "substeps", "max_input")
+ENV_OPTIONS = (
+    "render_mode",
+    "control_period",
+    "substeps",
+    "integrator",
+    "num_threads",
+    "max_input",
+)
 
 
 def state_names(system) -> tuple[str, ...]:

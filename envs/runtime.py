@@ -186,7 +186,10 @@ class Runtime:
         task = lay.task
         self._reward = compile_task_function(task.reward, sample)
         self._success = compile_task_function(task.success, sample)
-        self._failure = compile_task_function(task.failure_fn, sample)
+        self._failure = (
+            None if task.failure is None else compile_task_function(task.failure, sample)
+        )
+        self._lowest = lay.lowest_reward
         self._derived = [(col, compile_task_function(fn, sample)) for col, fn in lay.derived]
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -250,18 +253,22 @@ class Runtime:
         lay = self.layout
         x = self.rows()
         observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
-        for col, fn in self._derived:
-            self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
-        np.clip(self._obs64, lay.obs_low, lay.obs_high, out=self._obs64)
+        if self._derived:  # the declared features are clipped by `observe` already
+            for col, fn in self._derived:
+                self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
+            np.clip(self._obs64, lay.obs_low, lay.obs_high, out=self._obs64)
         self.O[:] = self._obs64
         for k, v in enumerate(self._reward(x, self.A, self.G, lay.p)):
             self.Q[:, k] = v
         self.success[:] = self._success(x, self.A, self.G, lay.p)
-        self.terminated[:] = self._failure(x, self.A, self.G, lay.p)
-        self.terminated |= self.diverged
+        if self._failure is None:
+            self.terminated[:] = self.diverged
+        else:
+            np.logical_or(self._failure(x, self.A, self.G, lay.p), self.diverged,
+                          out=self.terminated)  # fmt: skip
         self.success &= ~self.terminated
         finish(self.Q, lay.term_low, lay.term_high, self.terminated, steps_left,
-               lay.lowest_reward, self.R)  # fmt: skip
+               self._lowest, self.R)  # fmt: skip
 
     def rows(self) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs."""

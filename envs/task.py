@@ -29,8 +29,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 Number = float | str | Callable[[Any], float]
 """A number, the name of a parameter or constant of p, or a function of p giving one."""
 
@@ -140,10 +138,6 @@ class Heuristic:
 
 
 # ---- the declaration ---------------------------------------------------------------------
-def _none(x, a, g, p):
-    return np.zeros(x.shape[0], dtype=np.bool_)
-
-
 @dataclass(frozen=True)
 class Task:
     """Everything particular to one task.
@@ -216,10 +210,6 @@ class Task:
         goals = [g.name for g in self.goal]
         if len(set(goals)) != len(goals):
             raise ValueError(f"Task {self.name!r}: repeated goal component in {goals}.")
-
-    @property
-    def failure_fn(self) -> Callable:
-        return self.failure if self.failure is not None else _none
 
     # ---- documentation -------------------------------------------------------------------
     def describe(self, **params) -> str:
