@@ -103,7 +103,6 @@ SPEED_TOLERANCE = 0.05
 """... and |r'| below this (m/s)."""
 
 
-
 def reward(x, a, g, p):
     e = (x[:, 0] - g[:, 0]) / (p.rod_length / 2)
     phi = wrap(x[:, 1])

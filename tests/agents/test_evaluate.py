@@ -32,6 +32,7 @@ def test_bead_leaving_the_rod_ends_zero_torque_episodes_early():
     assert np.isfinite(stats.returns).all()
 
 
+@pytest.mark.slow  # encodes an mp4
 def test_video_of_the_first_episode(tmp_path):
     pytest.importorskip("moviepy")
     evaluate("Lagrange/CrankSlider-v1", "heuristic", episodes=1, video_dir=tmp_path / "videos")

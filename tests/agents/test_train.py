@@ -24,7 +24,11 @@ ARM, BEAD, CRANK = _env_id("TwoLinkArm"), _env_id("BeadOnRod"), _env_id("CrankSl
 SMALL = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)
 
 
-@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+@pytest.mark.parametrize(
+    "env_id",
+    # one env in the fast suite; every env with -m slow (each builds its own networks)
+    [e if "BeadOnRod" in e else pytest.param(e, marks=pytest.mark.slow) for e in envs.ENV_IDS],
+)
 def test_a_few_hundred_steps_train_end_to_end(env_id, tmp_path):
     result = train(env_id, timesteps=512, run_dir=tmp_path, **SMALL)
     assert result.timesteps == 512
@@ -128,6 +132,7 @@ def test_cli_trains_and_reports(tmp_path, capsys):
     assert f"ppo on {BEAD}: 512 steps" in out and "model.zip" in out
 
 
+@pytest.mark.slow  # two trainings each
 @pytest.mark.parametrize("algo", ["sac", "td3"])
 def test_off_policy_algorithms_train_and_resume_with_their_replay_buffer(algo, tmp_path):
     kwargs = dict(algo=algo, eval_freq=300, eval_episodes=1, progress=False, run_dir=tmp_path)
@@ -140,6 +145,7 @@ def test_off_policy_algorithms_train_and_resume_with_their_replay_buffer(algo, t
     assert result.model.replay_buffer.size() == 400  # the buffer came back with the model
 
 
+@pytest.mark.slow  # three trainings
 def test_an_earlier_run_is_replaced_only_when_asked(tmp_path):
     train(CRANK, timesteps=1024, run_dir=tmp_path, **SMALL)
     with pytest.raises(UserError) as refused:

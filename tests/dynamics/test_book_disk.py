@@ -139,6 +139,7 @@ def test_energies_equal_730_733_734(disk):
     assert sp.simplify(disk.derived.potential - V) == 0
 
 
+@pytest.mark.slow  # symbolic (4 s); the constraint residual is checked numerically elsewhere
 def test_constraints_are_735_and_738(disk):
     # derived from zero velocity of the material contact point, not typed in
     x, z, th, ph, ps, p = _names(disk)

@@ -155,12 +155,12 @@ def test_a_crafted_curve_runs_no_code(tmp_path):
     ]
     for curve in crafted:
         with pytest.raises(ValueError, match="cannot read the curve of particle_on_curve"):
-            dynamics.get_model("particle_on_curve", curve=curve).spec
+            _ = dynamics.get_model("particle_on_curve", curve=curve).spec
     assert not marker.exists()
     with pytest.raises(ValueError, match="cannot read coefficient a"):
-        dynamics.get_model("particle_nonholonomic", a="getattr(x, 'y')").spec
+        _ = dynamics.get_model("particle_nonholonomic", a="getattr(x, 'y')").spec
     with pytest.raises(ValueError, match="cannot read the potential of particle_on_4_sphere"):
-        dynamics.get_model("particle_on_4_sphere", potential="eval('1')").spec
+        _ = dynamics.get_model("particle_on_4_sphere", potential="eval('1')").spec
 
 
 def test_text_and_sympy_curves_give_the_same_model():

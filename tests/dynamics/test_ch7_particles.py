@@ -23,7 +23,7 @@ CURVILINEAR = ["particle_cylindrical", "particle_spherical", "particle_parabolic
 def _derived(name):
     """The model, derived once for all the symbolic tests of this module."""
     model = dynamics.get_model(name)
-    model.derived
+    _ = model.derived  # derive now, once
     return model
 
 
@@ -84,6 +84,7 @@ def test_cylindrical_equations_are_78_with_the_forces_of_79_corrected():
     assert not _same(ours, book_78(F_r, printed, Fz))
 
 
+@pytest.mark.slow  # symbolic simplification (3 s)
 def test_spherical_equations_are_711_to_713():
     model = _derived("particle_spherical")
     (r, th, phi), p, Fx, Fy, Fz = _symbols(model)
@@ -274,6 +275,11 @@ def test_spherical_velocity_components_omitted_before_711():
     for name, rate in zip(("position_x", "position_y", "position_z"), rates):
         assert sp.expand(out[name].diff(t) - rate) == 0
     T = p["m"] * sum(v**2 for v in rates) / 2
-    assert sp.expand(sp.expand_trig(T - model.derived.kinetic)).subs(
-        c(th) ** 2, 1 - s(th) ** 2
-    ).expand().subs(c(phi) ** 2, 1 - s(phi) ** 2).expand() == 0
+    assert (
+        sp.expand(sp.expand_trig(T - model.derived.kinetic))
+        .subs(c(th) ** 2, 1 - s(th) ** 2)
+        .expand()
+        .subs(c(phi) ** 2, 1 - s(phi) ** 2)
+        .expand()
+        == 0
+    )

@@ -145,9 +145,10 @@ def test_finite_arguments_that_overflow_name_method_and_argument(arm, call, meth
 
 
 def test_linearize_rejects_nan_time_like_energy(arm):
-    for f in (lambda: arm.linearize(np.zeros(4), np.zeros(2), t=np.nan), lambda: arm.energy(
-        np.zeros(4), t=np.nan
-    )):
+    for f in (
+        lambda: arm.linearize(np.zeros(4), np.zeros(2), t=np.nan),
+        lambda: arm.energy(np.zeros(4), t=np.nan),
+    ):
         with pytest.raises(ValueError, match="time contains NaN or inf"):
             f()
     with pytest.raises(ValueError, match="no batch axis"):
