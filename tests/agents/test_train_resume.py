@@ -54,11 +54,17 @@ def test_a_signal_saves_the_model_and_a_checkpoint_the_run_resumes_from(
 ):
     monkeypatch.setattr(_SignalAt, "send", signum)
     monkeypatch.setattr(train_mod, "GracefulStop", _SignalAt)
-    handler = signal.getsignal(signum)
-    with pytest.raises(TrainingInterrupted) as stopped:
-        train(BEAD, timesteps=2048, run_dir=tmp_path, eval_freq=256, **SMALL)
+    # the disposition an interactive run has; a shell without job control starts background
+    # jobs (as a CI runner may start the tests) with SIGINT ignored, which train() respects
+    default = signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
+    previous = signal.signal(signum, default)
+    try:
+        with pytest.raises(TrainingInterrupted) as stopped:
+            train(BEAD, timesteps=2048, run_dir=tmp_path, eval_freq=256, **SMALL)
+        assert signal.getsignal(signum) is default  # the handler is put back
+    finally:
+        signal.signal(signum, previous)
     assert stopped.value.exit_code == 128 + signum
-    assert signal.getsignal(signum) is handler  # the handler is put back
     # stopped at 300, inside the second rollout: kept is what the weights learnt from
     result = stopped.value.result
     assert result.timesteps == 256 and result.model.num_timesteps == 256
