@@ -103,7 +103,9 @@ class _StopAt(train_mod.GracefulStop):
 
 
 @pytest.mark.slow
-def test_training_time_is_kept_across_an_interrupted_run(tmp_path, tiny, monkeypatch):
+def test_training_time_is_kept_across_an_interrupted_run(
+    tmp_path, tiny, monkeypatch, interactive_sigint
+):
     with monkeypatch.context() as patch:
         patch.setattr(train_mod, "GracefulStop", _StopAt)
         with pytest.raises(train_mod.TrainingInterrupted):
