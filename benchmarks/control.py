@@ -15,7 +15,7 @@ TVLQR. Each row runs its episodes side by side in the native vector env
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import importlib
 import os
 import sys
 import time
@@ -24,27 +24,10 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import numpy as np  # noqa: E402
 
-import envs  # noqa: E402
 from agents.evaluate import evaluate  # noqa: E402
 
-FURUTA_SWING_UP = "Examples/FurutaSwingUp-v0"
-
-
-def register_furuta_swing_up() -> str:
-    """The Furuta pendulum of examples/ from hanging (theta = pi +- 0.1 rad), no failure."""
-    from examples import furuta
-
-    task = dataclasses.replace(
-        furuta.TASK,
-        name="FurutaSwingUp",
-        failure=None,
-        start={"alpha": (-0.1, 0.1), "theta": (np.pi - 0.1, np.pi + 0.1), "theta_dot": (-0.1, 0.1)},
-        hyperparams={"plan": {"horizon": 3.0}},
-    )
-    envs.register(FURUTA_SWING_UP, task)
-    return FURUTA_SWING_UP
+FURUTA_SWING_UP = "Examples/FurutaSwingUp-v0"  # registered by examples.furuta_swing_up
 
 
 ROWS = (
@@ -61,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    register_furuta_swing_up()
+    importlib.import_module("examples.furuta_swing_up")
     print(f"{args.episodes} episodes per row, seeds {args.seed}..{args.seed + args.episodes - 1}")
     print("| env | agent | success | return (mean +- std) | wall s |")
     print("|---|---|---|---|---|")

@@ -3,8 +3,6 @@ acrobot they make solvable (Lagrange/Acrobot-v2)."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -153,17 +151,9 @@ def test_plan_agent_answers_predict_for_one_observation_and_restarts_on_reset():
 
 
 def furuta_swing_up() -> str:
-    from examples import furuta
+    import examples.furuta_swing_up  # noqa: F401  (registers it)
 
-    task = dataclasses.replace(
-        furuta.TASK,
-        name="FurutaSwingUp",
-        failure=None,
-        start={"alpha": (-0.1, 0.1), "theta": (np.pi - 0.1, np.pi + 0.1), "theta_dot": (-0.1, 0.1)},
-        hyperparams={"plan": {"horizon": 3.0}},
-    )
-    envs.register("Examples/FurutaSwingUpTest-v0", task)
-    return "Examples/FurutaSwingUpTest-v0"
+    return "Examples/FurutaSwingUp-v0"
 
 
 @pytest.mark.slow  # plans a 3 s swing-up of a user system: about 15 s
