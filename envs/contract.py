@@ -87,9 +87,12 @@ def positive_int(name: str, value) -> int:
 def real_array(value, name: str) -> np.ndarray:
     """`value` as float64; TypeError for complex, object or non-numeric input."""
     a = np.asarray(value)
-    if np.iscomplexobj(a):
+    kind = a.dtype.kind
+    if kind == "f":
+        return a.astype(np.float64, copy=False)
+    if kind == "c":
         raise TypeError(f"{name} must be real, got complex values {value!r}.")
-    if a.dtype.kind not in "biuf":
+    if kind not in "biu":
         raise TypeError(f"{name} must be numeric, got dtype {a.dtype}.")
     return a.astype(np.float64)
 

@@ -89,7 +89,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
         info: dict[str, Any] = {
             "state": rt.X[0].copy(),
             "input": rt.U[0].copy(),
-            "energy": float(rt.energy()[0]),
+            "energy": rt.energy_of_row0(),
         }
         if reset:
             info["goal"] = rt.G[0].copy()

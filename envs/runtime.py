@@ -190,6 +190,7 @@ class Runtime:
             None if task.failure is None else compile_task_function(task.failure, sample)
         )
         self._lowest = lay.lowest_reward
+        self._term_names = [t.name for t in task.terms]
         self._derived = [(col, compile_task_function(fn, sample)) for col, fn in lay.derived]
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -287,6 +288,11 @@ class Runtime:
         self.system.energy_terms_unchecked(self.T, self.X, self._E)
         return self._E.sum(axis=1)
 
+    def energy_of_row0(self) -> float:
+        """T + V of the first row, J (the single env's cheap path)."""
+        self.system.energy_terms_unchecked(self.T, self.X, self._E)
+        return float(self._E[0, 0] + self._E[0, 1])
+
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
         self.system.constraint_residual_unchecked(self.T, self.X, self._C)
@@ -294,7 +300,7 @@ class Runtime:
 
     def reward_terms(self, row: int | None = None):
         """The clipped reward terms, by name: floats of one row, or arrays of every row."""
-        names = [t.name for t in self.layout.task.terms]
+        names = self._term_names
         if row is None:
             return {k: self.Q[:, i].copy() for i, k in enumerate(names)}
         return dict(zip(names, self.Q[row].tolist()))
