@@ -35,7 +35,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
     def __init__(self, task: Task, render_mode: str | None = None, **options: Any):
         self._rt = make_runtime(task, 1, options)
         lay = self._rt.layout
-        fps = max(1, round(1.0 / self._rt.control_period))
+        fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata = {**type(self).metadata, "render_fps": fps}
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(

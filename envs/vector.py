@@ -62,7 +62,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
             if max_episode_steps is None
             else positive_int("max_episode_steps", max_episode_steps)
         )
-        fps = max(1, round(1.0 / self._rt.control_period))
+        fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata = {**type(self).metadata, "render_fps": fps, "autoreset_mode": mode}
         # the spaces of one copy are the single env's, built from the same layout
         lay = self._rt.layout

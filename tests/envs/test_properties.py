@@ -7,7 +7,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import envs  # noqa: F401  (registers the ids)
@@ -72,6 +72,7 @@ def test_reset_accepts_states_within_the_task_limits_only(env, state):
     key=st.sampled_from(["control_period", "substeps", "max_input"]),
     value=NUMBER | st.integers(-3, 3),
 )
+@example(key="control_period", value=2.225073858507203e-309)  # once: 1 / period overflowed
 def test_make_accepts_documented_options_only(key, value):
     try:
         env = gym.make("Lagrange/BeadOnRod-v1", **{key: value}).unwrapped
