@@ -33,7 +33,7 @@ ValueError, complex ones TypeError.
 | 1 | tau_steer | 0.1 |
 
 ## Observation Space
-`Box(low, high, (10,), float32)`:
+`Box(low, high, (13,), float32)`:
 
 | Num | Observation | Min | Max | Unit |
 |-----|-------------|-----|-----|------|
@@ -47,21 +47,28 @@ ValueError, complex ones TypeError.
 | 7 | v* | -3 | 3 | m/s |
 | 8 | cos phi* | -1 | 1 |  |
 | 9 | sin phi* | -1 | 1 |  |
+| 10 | cos(phi - phi*) | -1 | 1 |  |
+| 11 | sin(phi - phi*) | -1 | 1 |  |
+| 12 | v - v* | -3 | 3 | m/s |
 
 ## Reward terms
 
 | Term | Min | Max | Meaning |
 |---|---|---|---|
 | alive | 1 | 1 | 1 per step |
-| speed | -4 | 0 | -(v - v*)^2, at most 4 |
-| heading | -9.87 | 0 | -(phi - phi*)^2 |
+| speed | -3 | 0 | -|v - v*|, at most 3 |
+| heading | -3.142 | 0 | -|phi - phi*| |
 | lean | -0.2742 | 0 | -(theta - pi/2)^2 |
 | effort | -0.002 | 0 | -0.001 |action|^2 |
+| track | 0 | 1 | (exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2 |
 
 ## Rewards
-On the state after the step, the sum of `alive` = 1, `speed` = -(v - v*)^2 (at most 4),
-`heading` = -(phi - phi*)^2 (wrapped to [-pi, pi)), `lean` = -(theta - pi/2)^2 and
-`effort` = -0.001 |action|^2.
+On the state after the step, the sum of `alive` = 1, `speed` = -|v - v*| (at most 3),
+`heading` = -|phi - phi*| (wrapped to [-pi, pi)), `lean` = -(theta - pi/2)^2, `effort` =
+-0.001 |action|^2 and `track` = (exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2,
+which pays for precision at the scale of the success tolerances (the linear terms keep a
+pull there that squared errors lose). The observation carries the tracking errors
+themselves (cos and sin of phi - phi*, and v - v*) besides the absolute angles LQR reads.
 
 ## Starting State
 v* uniform in [0.5, 3] m/s and phi* uniform in [-pi, pi); the disk rolls at v* with
@@ -72,7 +79,7 @@ rates are projected onto the rolling constraints).
 ## Episode End
 Termination: the lean |theta - pi/2| exceeds pi/6 (fallen), or divergence (a non-finite
 state or a rate beyond its bound; `info["diverged"]`); that step's reward adds (steps left)
-x (the lowest reward a step can pay, -13.1), so ending early never pays. Truncation: 400
+x (the lowest reward a step can pay, -5.42), so ending early never pays. Truncation: 400
 steps (20 s). `info["is_success"]`: |v - v*| < 0.1 m/s and heading within 0.1 rad, not
 fallen. `info["constraint_residual"]`: the rolling constraints' residual (m/s), at
 round-off: each RK4 substep is projected back onto them.
@@ -87,8 +94,10 @@ then a projection onto the rolling constraints; an unforced episode keeps the en
 tests/envs/test_physics.py; the former RK4 x10 2e-9). `num_threads` as for TwoLinkArm.
 
 ## Version History
-* v1: falling and divergence terminate with the early-end penalty; the speed term is
-  bounded at -4; built on the task declaration.
+* v1: falling and divergence terminate with the early-end penalty; linear speed and
+  heading terms and a precision term `track`; the heading error and v - v* observed (PPO
+  84 % and 94 % success at 400k steps, seeds 0 and 1, against 0 % before); built on the
+  task declaration.
 * v0: initial version.
 """
 
@@ -99,7 +108,7 @@ import numpy as np
 from dynamics import wrap
 
 from . import rendering
-from .task import Angle, Goal, LQRHints, Task, Term, Value
+from .task import Angle, AngleError, Derived, Goal, LQRHints, Task, Term, Value
 
 LEAN_LIMIT = np.pi / 6
 """The episode terminates when |theta - pi/2| (the lean from upright) exceeds this (rad)."""
@@ -115,15 +124,25 @@ SPEED_TOLERANCE = 0.1
 """Success: |v - v*| below this (m/s) ..."""
 HEADING_TOLERANCE = 0.1
 """... and the heading within this (rad) of the command, upright."""
+TRACK_SCALE = 0.1
+"""Scale (m/s, rad) of the `track` reward term's kernels."""
+SPEED_ERROR_BOUND = 3.0
+"""Bound on the observed and rewarded speed error |v - v*| (m/s)."""
 
 
 def reward(x, a, g, p):
-    speed_error = -p.r * x[:, 9] - g[:, 0]
-    heading_error = wrap(x[:, 3] - g[:, 1])
+    dv = np.abs(-p.r * x[:, 9] - g[:, 0])
+    dphi = np.abs(wrap(x[:, 3] - g[:, 1]))
     lean = x[:, 2] - 0.5 * np.pi
     effort = -0.001 * (a[:, 0] ** 2 + a[:, 1] ** 2)
     alive = np.ones_like(lean)
-    return alive, -(speed_error**2), -(heading_error**2), -lean * lean, effort
+    track = 0.5 * (np.exp(-dv / TRACK_SCALE) + np.exp(-dphi / TRACK_SCALE))
+    return alive, -dv, -dphi, -lean * lean, effort, track
+
+
+def speed_error(x, a, g, p):
+    """v - v* (m/s), observed."""
+    return -p.r * x[:, 9] - g[:, 0]
 
 
 def success(x, a, g, p):
@@ -181,14 +200,17 @@ TASK = Task(
         Value("psi_dot", unit="rad/s"),
         Value("v*"),
         Angle("phi*"),
+        AngleError("phi", "phi*"),
+        Derived("v - v*", speed_error, -SPEED_ERROR_BOUND, SPEED_ERROR_BOUND, "m/s"),
     ),
     reward=reward,
     terms=(
         Term("alive", 1.0, 1.0, "1 per step"),
-        Term("speed", -4.0, 0.0, "-(v - v*)^2, at most 4"),
-        Term("heading", -(np.pi**2), 0.0, "-(phi - phi*)^2"),
+        Term("speed", -SPEED_ERROR_BOUND, 0.0, "-|v - v*|, at most 3"),
+        Term("heading", -np.pi, 0.0, "-|phi - phi*|"),
         Term("lean", -(LEAN_LIMIT**2), 0.0, "-(theta - pi/2)^2"),
         Term("effort", -0.002, 0.0, "-0.001 |action|^2"),
+        Term("track", 0.0, 1.0, "(exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2"),
     ),
     success=success,
     failure=failure,
@@ -218,7 +240,7 @@ TASK = Task(
     ),
     hyperparams={
         "ppo": {
-            "n_timesteps": 300_000,
+            "n_timesteps": 400_000,
             "n_steps": 512,
             "gamma": 0.99,
             "policy_kwargs": {"net_arch": [128, 128], "log_std_init": -1.0},
