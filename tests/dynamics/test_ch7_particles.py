@@ -259,6 +259,7 @@ def test_counter_clockwise_loop_lowers_the_nonholonomic_particle():
     np.testing.assert_allclose(dz, -np.pi * R**2 / L, rtol=1e-5)
 
 
+@pytest.mark.slow  # derives the spherical model symbolically (3 s)
 def test_spherical_velocity_components_omitted_before_711():
     """7.2 says "Differentiating," and prints T (7.11) without the rates of (7.10); they are
     supplied here (docs/errata.md) and give (7.11)."""
