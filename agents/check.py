@@ -40,7 +40,7 @@ from .common import (
     register_envs,
     set_torch_threads,
     task_of,
-    write_text_atomic,
+    write_atomic,
 )
 from .evaluate import BASELINES, evaluate, heuristic_of
 from .report import (
@@ -138,7 +138,7 @@ def record_segment(run_dir: Path, start: int, end: int, seconds: float) -> tuple
     segments = [s for s in segments if s["to"] <= start] if start > 0 else []
     if end > start:
         segments.append({"from": start, "to": end, "seconds": round(seconds, 3)})
-    write_text_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
+    write_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
     return sum(s["seconds"] for s in segments), sum(s["to"] - s["from"] for s in segments)
 
 
@@ -264,7 +264,7 @@ def run_check(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams
         )
     total = time.perf_counter() - start
-    write_text_atomic(out / "results.md", report_text(rows, episodes, seed, total))
+    write_atomic(out / "results.md", report_text(rows, episodes, seed, total))
     write_csv(rows, out / "results.csv")
     plot_comparison(rows, out / "comparison.png")
     print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")

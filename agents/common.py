@@ -10,12 +10,15 @@ from __future__ import annotations
 import argparse
 import difflib
 import importlib
+import math
 from typing import NoReturn
 
 import gymnasium as gym
 
-from dynamics.files import atomic_path  # noqa: F401  (re-exported: one atomic writer)
-from dynamics.files import write_atomic as write_text_atomic  # noqa: F401
+from dynamics.files import (
+    atomic_path,  # noqa: F401  (re-exported: one atomic writer)
+    write_atomic,  # noqa: F401
+)
 
 DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/agents.py --threads (2 threads is slower)
 
@@ -115,6 +118,17 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def positive_number(text: str) -> float:
+    """argparse type: a positive finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {value}")
     return value
 
 

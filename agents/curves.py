@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
-from .common import atomic_path, write_text_atomic
+from .common import atomic_path, write_atomic
 
 EPISODE_FIELDS = ("timesteps", "return", "length", "is_success")
 EVAL_FIELDS = ("timesteps", "mean_return", "std_return", "success_rate", "mean_length", "wall_s")
@@ -38,7 +38,7 @@ def write_rows(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    write_text_atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 class CurveLogger(BaseCallback):

@@ -14,7 +14,14 @@ import sys
 import gymnasium as gym
 import numpy as np
 
-from .common import UserError, atomic_path, check_env_id, fail, non_negative_int
+from .common import (
+    UserError,
+    atomic_path,
+    check_env_id,
+    fail,
+    non_negative_int,
+    positive_number,
+)
 
 
 def run(env_id: str, seed: int = 0, horizon: float | None = None, replan: bool = False):
@@ -73,21 +80,11 @@ def plot(path, env_id: str, tracker, states, actions, names) -> None:
     plt.close(fig)
 
 
-def positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
-    return v
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agents.plan", description=__doc__)
     parser.add_argument("env_id", help="a Lagrange env id, e.g. Lagrange/Acrobot-v2")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="start's seed")
-    parser.add_argument("--horizon", type=positive_float, help="plan length, s (task's)")
+    parser.add_argument("--horizon", type=positive_number, help="plan length, s (task's)")
     parser.add_argument("--replan", action="store_true", help="plan from the drawn start")
     parser.add_argument("--plot", metavar="FILE", help="write the motion as an image")
     args = parser.parse_args(argv)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import atomic_path, write_text_atomic
+from .common import atomic_path, write_atomic
 from .evaluate import ENDINGS, EvalStats
 
 LEVEL = 0.95
@@ -221,7 +221,7 @@ def write_csv(rows: list[Row], path: Path) -> None:
             + [f"{v:.2f}" if isinstance(v, float) else v for v in train]
             + [r.note]
         )
-    write_text_atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 # ---- the comparison figure ---------------------------------------------------------------

@@ -55,7 +55,7 @@ from .common import (
     non_negative_int,
     positive_int,
     set_torch_threads,
-    write_text_atomic,
+    write_atomic,
 )
 from .curves import CurveLogger
 from .vecenv import VECTORIZATIONS, make_sb3_vec_env
@@ -575,7 +575,7 @@ def train(
             "hyperparams_file": None if hyperparams is None else str(hyperparams),
             "hyperparams": hp,
         }
-        write_text_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
+        write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq or max(total // 10, 2000),
             eval_episodes=eval_episodes,

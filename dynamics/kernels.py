@@ -120,43 +120,6 @@ def accelerations_batch(T, X, U, p, out):
         accelerations(T[b], X[b], U[b], p, A, out[b])
 
 
-@njit(cache=True, error_model="numpy")
-def rk4_batch(T, X, U, p, h, substeps, out):
-    """Classical RK4, `substeps` steps of size h per row, inputs held (zero-order hold).
-    Constrained models are projected onto their velocity constraints after every step."""
-    n2 = X.shape[1]
-    A = np.empty((K, K + 1))  # a spare column for solve
-    z = np.empty(K)
-    x = np.empty(n2)
-    xs = np.empty(n2)
-    k1 = np.empty(n2)
-    k2 = np.empty(n2)
-    k3 = np.empty(n2)
-    k4 = np.empty(n2)
-    for b in range(X.shape[0]):
-        u = U[b]
-        t = T[b]
-        for i in range(n2):
-            x[i] = X[b, i]
-        for _ in range(substeps):
-            rhs(t, x, u, p, A, z, k1)
-            for i in range(n2):
-                xs[i] = x[i] + 0.5 * h * k1[i]
-            rhs(t + 0.5 * h, xs, u, p, A, z, k2)
-            for i in range(n2):
-                xs[i] = x[i] + 0.5 * h * k2[i]
-            rhs(t + 0.5 * h, xs, u, p, A, z, k3)
-            for i in range(n2):
-                xs[i] = x[i] + h * k3[i]
-            rhs(t + h, xs, u, p, A, z, k4)
-            for i in range(n2):
-                x[i] += (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-            t += h
-            project(t, x, p, A, z)
-        for i in range(n2):
-            out[b, i] = x[i]
-
-
 # ---- fixed-step Runge-Kutta over rows held in vector lanes ---------------------------------
 # fdlibm's reduction by pi/2 in three parts (33 + 33 + 53 bits: k * PIO2_1 and k * PIO2_2 are
 # exact for |k| < 2**20, |x| < 1.6e6) and its minimax kernels on [-pi/4, pi/4] (< 1 ulp).

@@ -25,8 +25,9 @@ def regenerated(module_name: str) -> tuple[Path, str, str]:
     module = importlib.import_module(module_name)
     path = Path(module.__file__)
     source = path.read_text(encoding="utf-8")
-    node = ast.parse(source).body[0]
-    doc = ast.get_docstring(ast.parse(source), clean=False)
+    tree = ast.parse(source)
+    node = tree.body[0]
+    doc = ast.get_docstring(tree, clean=False)
     if not isinstance(node, ast.Expr) or doc is None:
         raise ValueError(f"{path} has no module docstring.")
     new_doc = document(doc, module.TASK)

@@ -209,10 +209,6 @@ def _rates_from_constraints(system, x: np.ndarray, rates: list[int]) -> np.ndarr
         e[:, i] += 1.0
         cols.append(system.constraint_residual(e) - r0)
     B = np.stack(cols, axis=-1)  # (N, n_c, len(rates))
-    v = np.linalg.lstsq(B[0], -r0[0], rcond=None)[0] if len(x) == 1 else None
-    if v is not None:
-        x[0, rates] += v
-        return x
     for b in range(len(x)):
         x[b, rates] += np.linalg.lstsq(B[b], -r0[b], rcond=None)[0]
     return x

@@ -246,7 +246,8 @@ class Runtime:
         if horizon is None:
             self._steps_left[:] = 0.0
         else:
-            np.maximum(horizon - self.steps, 0, out=self._steps_left, casting="unsafe")
+            np.subtract(horizon, self.steps, out=self._steps_left, casting="unsafe")
+            np.maximum(self._steps_left, 0.0, out=self._steps_left)
         self._evaluate(self._steps_left)
         return bool(diverged)
 
