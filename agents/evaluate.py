@@ -124,7 +124,12 @@ def make_agent(name: str, env, seed: int = 0):
         return PlanPolicy(env)
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
-        return SB3Policy.load(path)
+        policy = SB3Policy.load(path)
+        if policy.handover is None:
+            return policy
+        from .handover import HandOverPolicy, handover_options
+
+        return HandOverPolicy(policy, env, handover_options(policy.handover)["level"])
     raise UserError(
         f"Unknown agent {name!r}: expected one of {', '.join(BASELINES)} or the path of a "
         f"trained model (model.zip or its run directory)."

@@ -178,6 +178,18 @@ class LQRPolicy:
         q[..., self._periodic] = wrap(q[..., self._periodic])
         return dx
 
+    def cost_to_go(self, x, x0, u0) -> np.ndarray:
+        """dx' P dx of states x (N, n_x) about each row's operating point (the value of the
+        infinite-horizon LQR problem, unsaturated)."""
+        x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
+        dx = self.error(x, x0)
+        cost = np.empty(len(x))
+        for i in range(len(x)):
+            d = self.design(x0[i], u0[i])
+            e = dx[i, d.linear.index]
+            cost[i] = e @ d.P @ e
+        return cost
+
     def act(self, x, x0, u0) -> np.ndarray:
         """Normalised actions for physical states x (batched), clipped to [-1, 1]."""
         x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)

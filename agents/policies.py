@@ -198,16 +198,6 @@ class SwingUpPolicy(Policy):
             cols.append(self.system.power(0.0, x, np.broadcast_to(u, (len(x), len(u)))))
         return np.stack(cols, axis=-1)
 
-    def cost_to_go(self, x: np.ndarray, x0: np.ndarray, u0: np.ndarray) -> np.ndarray:
-        """LQR's dx' P dx at states x (N, 4) about each row's operating point."""
-        dx = self.lqr.error(x, x0)
-        cost = np.empty(len(x))
-        for i in range(len(x)):
-            d = self.lqr.design(x0[i], u0[i])
-            e = dx[i, d.linear.index]
-            cost[i] = e @ d.P @ e
-        return cost
-
     def act(self, obs):
         env = self.env
         x = env.state_from_observation(obs)
@@ -229,7 +219,7 @@ class SwingUpPolicy(Policy):
             u = np.zeros((int(straight.sum()), self.system.n_u))
             u[:, self.actuated[0]] = (want - (a0[:, 1] - a0[:, 0])) / b
             a[straight] = env.input_to_action(u)
-        near = self.cost_to_go(x, x0, u0) < self.capture_level
+        near = self.lqr.cost_to_go(x, x0, u0) < self.capture_level
         if near.any():
             a[near] = self.lqr.act(x[near], x0[near], u0[near])
         return a
@@ -278,6 +268,7 @@ class SB3Policy:
         self.model = model
         self.obs_rms = obs_rms
         self.clip_obs, self.epsilon = clip_obs, epsilon
+        self.handover: dict | None = None  # the run's LQR hand-over (agents.handover)
 
     @classmethod
     def load(cls, path: str | Path) -> SB3Policy:
@@ -296,8 +287,10 @@ class SB3Policy:
         config = path.parent / "config.yml"
         algos = {"ppo": PPO, "sac": SAC, "td3": TD3}
         order = list(algos)
+        run = {}
         if config.exists():
-            order.insert(0, yaml.safe_load(config.read_text(encoding="utf-8"))["algo"])
+            run = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+            order.insert(0, run["algo"])
         model, errors = None, []
         for name in dict.fromkeys(order):
             try:
@@ -307,14 +300,15 @@ class SB3Policy:
                 errors.append(f"{name}: {exc}")
         if model is None:
             raise UserError(f"{path} is not a PPO, SAC or TD3 model ({'; '.join(errors)}).")
+        policy = cls(model)
         stats = path.parent / "vecnormalize.pkl"
-        if not stats.exists():
-            return cls(model)
-        with open(stats, "rb") as fh:
-            vecnorm = pickle.load(fh)
-        if not vecnorm.norm_obs:
-            return cls(model)
-        return cls(model, vecnorm.obs_rms, vecnorm.clip_obs, vecnorm.epsilon)
+        if stats.exists():
+            with open(stats, "rb") as fh:
+                vecnorm = pickle.load(fh)
+            if vecnorm.norm_obs:
+                policy = cls(model, vecnorm.obs_rms, vecnorm.clip_obs, vecnorm.epsilon)
+        policy.handover = (run.get("hyperparams") or {}).get("handover")
+        return policy
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_rms is None:

@@ -58,6 +58,7 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
+from .handover import HandOverVecEnv, handover_options
 from .vecenv import VECTORIZATIONS, make_sb3_vec_env
 
 try:  # one training process per run directory (POSIX advisory lock)
@@ -66,7 +67,15 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
-MANAGED_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "action_noise", "policy_kwargs")
+MANAGED_KEYS = (
+    "n_timesteps",
+    "n_envs",
+    "policy",
+    "normalize",
+    "action_noise",
+    "policy_kwargs",
+    "handover",
+)
 CHECKPOINT_PREFIX = "rl_model"
 _CHECKPOINT_RE = re.compile(rf"{CHECKPOINT_PREFIX}_(\d+)_steps\.zip$")
 # every file a run writes: checkpoints/ holds the CHECKPOINT_FILE ones, the run directory these
@@ -164,6 +173,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     try:
         hp = hparams.load(algo, env_id) if path is None else hparams.load(algo, env_id, path=path)
         algo_kwargs(algo, hp, 1, source=None if path is None else str(path))
+        handover_options(hp.get("handover"))
     except (ValueError, TypeError, AttributeError, yaml.YAMLError) as exc:
         where = f" ({path})" if path is not None and str(path) not in str(exc) else ""
         raise UserError(f"{' '.join(str(exc).split())}{where}") from exc
@@ -184,6 +194,11 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
     """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks."""
     train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization)
     eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization)
+    handover = handover_options(hp.get("handover"))
+    if handover is not None:  # the agent learns in the closed loop it will act in
+        gamma = float(hp.get("gamma", 0.99))
+        train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
+        eval_env = HandOverVecEnv(eval_env, handover["level"])
     norm = _normalize_kwargs(hp)
     if norm is not None:
         train_env = VecNormalize(train_env, **norm)

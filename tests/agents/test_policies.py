@@ -106,7 +106,7 @@ def test_swing_up_hands_over_inside_the_lqr_basin():
         z = np.random.default_rng(0).normal(size=(episodes, 4))
         dx = np.linalg.solve(np.linalg.cholesky(P).T, z.T).T
         dx *= np.sqrt(policy.capture_level / np.einsum("bi,ij,bj->b", dx, P, dx))[:, None]
-        np.testing.assert_allclose(policy.cost_to_go(x0 + dx, x0, u0), policy.capture_level)
+        np.testing.assert_allclose(policy.lqr.cost_to_go(x0 + dx, x0, u0), policy.capture_level)
         obs, _ = vec.reset(seed=0, options={"state": x0 + dx, "goal": vec.unwrapped.goal})
         for _ in range(200):  # 10 s: the slowest closed-loop rate is 1/s
             obs, _, _, _, info = vec.step(policy.lqr.predict(obs)[0])
