@@ -10,6 +10,7 @@ from gymnasium import spaces
 
 from . import rendering
 from .contract import ContractMixin, horizon, make_runtime, real_array, start_rows
+from .runtime import NonFiniteActions
 from .task import Task
 
 
@@ -72,12 +73,13 @@ class LagrangianEnv(ContractMixin, gym.Env):
         a = real_array(action, "action")
         if a.shape != self.action_space.shape:
             raise ValueError(f"Expected action of shape {self.action_space.shape}, got {a.shape}.")
-        if not np.isfinite(a).all():
-            raise ValueError(f"Action contains NaN or inf: {action!r}.")
         rt = self._rt
         if self._horizon is None:  # the registry's limit: known once make has set the spec
             self._horizon = horizon(self, self.task)
-        diverged = rt.step(a.reshape(1, -1), self._horizon)
+        try:  # the runtime checks finiteness before it changes anything
+            diverged = rt.step(a.reshape(1, -1), self._horizon)
+        except NonFiniteActions:
+            raise ValueError(f"Action contains NaN or inf: {action!r}.") from None
         terminated = bool(rt.terminated[0])
         info = self._info(diverged=diverged)
         if self.render_mode == "human":

@@ -29,6 +29,10 @@ from .layout import Layout
 _COMPILED: dict = {}
 
 
+class NonFiniteActions(ValueError):
+    """`Runtime.step` was given a NaN or inf action (nothing was changed)."""
+
+
 def compile_task_function(fn, args):
     """`fn` compiled with numba (cached on disk when its module allows), or `fn` itself
     when numba cannot type it; `args` is a sample call used to find out."""
@@ -59,6 +63,24 @@ def compile_task_function(fn, args):
         )
     _COMPILED[key] = compiled
     return compiled
+
+
+def bind(fn, args):
+    """The machine code numba compiled of `fn` for the types of `args`, called without
+    numba's per-call type dispatch (about a microsecond for the parameter record, more
+    than the work of one row): for the runtime's own arrays, whose types never change.
+    `fn` itself when it is plain Python or has no overload for those types."""
+    overloads = getattr(fn, "overloads", None)
+    if overloads is None:
+        return fn
+    compiled = overloads.get(tuple(fn.typeof_pyval(a) for a in args))
+    return fn if compiled is None else compiled.entry_point
+
+
+def _warm(kernel, *args):
+    """`kernel` bound (see `bind`) after one call on copies of `args`."""
+    kernel(*(a.copy() if isinstance(a, np.ndarray) else a for a in args))
+    return bind(kernel, args)
 
 
 @njit(cache=True)
@@ -184,19 +206,30 @@ class Runtime:
         lay = self.layout
         sample = (self._rows_x, self.A, self.G, lay.p)
         task = lay.task
-        self._reward = compile_task_function(task.reward, sample)
-        self._success = compile_task_function(task.success, sample)
-        self._failure = (
-            None if task.failure is None else compile_task_function(task.failure, sample)
-        )
+
+        def compiled(fn):
+            return bind(compile_task_function(fn, sample), sample)
+
+        self._reward = compiled(task.reward)
+        self._success = compiled(task.success)
+        self._failure = None if task.failure is None else compiled(task.failure)
         self._lowest = lay.lowest_reward
         self._term_names = [t.name for t in task.terms]
-        self._derived = [(col, compile_task_function(fn, sample)) for col, fn in lay.derived]
+        self._derived = [(col, compiled(fn)) for col, fn in lay.derived]
+        # the kernels on the runtime's own arrays (bound after a call on copies, which
+        # compiles or loads them for exactly these types)
+        self._observe = _warm(observe, self._rows_x, self.G, lay.ops, lay.obs_low,
+                              lay.obs_high, self._obs64)  # fmt: skip
+        self._check_states = _warm(check_states, self.X, self._X_next, lay.limits,
+                                   self.diverged)  # fmt: skip
+        self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self.terminated,
+                             self._steps_left, float(self._lowest), self.R)  # fmt: skip
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
     def __getstate__(self):
         state = self.__dict__.copy()
-        for k in ("_reward", "_success", "_failure", "_derived"):
+        for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_check_states",
+                  "_finish"):  # fmt: skip
             state.pop(k)
         return state
 
@@ -234,7 +267,7 @@ class Runtime:
         penalty). Returns whether any row diverged."""
         lay = self.layout
         if not apply_actions(actions, lay.max_input, lay.actuated, self.A, self.U):
-            raise ValueError("actions contain NaN or inf")
+            raise NonFiniteActions("actions contain NaN or inf")
         self.system.step_unchecked(
             self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
             self.integrator, self.num_threads,
@@ -242,7 +275,7 @@ class Runtime:
         self.X, self._X_next = self._X_next, self.X
         self.T += self.control_period
         self.steps += 1
-        diverged = check_states(self.X, self._X_next, lay.limits, self.diverged)
+        diverged = self._check_states(self.X, self._X_next, lay.limits, self.diverged)
         if horizon is None:
             self._steps_left[:] = 0.0
         else:
@@ -254,7 +287,7 @@ class Runtime:
     def _evaluate(self, steps_left: np.ndarray) -> None:
         lay = self.layout
         x = self.rows()
-        observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
+        self._observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
         if self._derived:  # the declared features are clipped by `observe` already
             for col, fn in self._derived:
                 self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
@@ -269,8 +302,8 @@ class Runtime:
             np.logical_or(self._failure(x, self.A, self.G, lay.p), self.diverged,
                           out=self.terminated)  # fmt: skip
         self.success &= ~self.terminated
-        finish(self.Q, lay.term_low, lay.term_high, self.terminated, steps_left,
-               self._lowest, self.R)  # fmt: skip
+        self._finish(self.Q, lay.term_low, lay.term_high, self.terminated, steps_left,
+                     float(self._lowest), self.R)  # fmt: skip
 
     def rows(self) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs."""
