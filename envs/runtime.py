@@ -100,11 +100,15 @@ def apply_actions(actions, max_input, actuated, clipped, U) -> bool:
 
 
 @njit(cache=True)
-def check_states(X, X_prev, limits, diverged) -> bool:
-    """diverged[b] = some |X[b, i]| > limits[i] or non-finite; a non-finite row is put back
-    to its previous (finite) state. Returns whether any row diverged."""
+def advance(X, X_prev, limits, diverged, T, dt, steps, horizon, steps_left) -> bool:
+    """After a step: time and step counts, the steps left to `horizon` (none when it is
+    negative: no time limit), and diverged[b] = some |X[b, i]| > limits[i] or non-finite,
+    a non-finite row put back to its previous (finite) state. Whether any row diverged."""
     any_bad = False
     for b in range(X.shape[0]):
+        T[b] += dt
+        steps[b] += 1
+        steps_left[b] = max(horizon - steps[b], 0) if horizon >= 0 else 0.0
         bad = False
         finite = True
         for i in range(X.shape[1]):
@@ -145,9 +149,11 @@ def observe(X, G, ops, low, high, out) -> None:
 
 
 @njit(cache=True)
-def finish(terms, low, high, ended, steps_left, lowest, rewards) -> None:
-    """Clip each reward term into its bounds, sum them, and add the early-end penalty
-    steps_left * min(0, lowest) to the rows that ended early."""
+def finish(terms, low, high, failed, diverged, steps_left, lowest, rewards, terminated,
+           success, obs, obs32) -> None:  # fmt: skip
+    """Clip each reward term into its bounds and sum them; a row terminates when it failed
+    or diverged, and then adds the early-end penalty steps_left * min(0, lowest) and is no
+    success; the observation is handed out as float32."""
     penalty = min(0.0, lowest)
     for b in range(terms.shape[0]):
         r = 0.0
@@ -155,9 +161,14 @@ def finish(terms, low, high, ended, steps_left, lowest, rewards) -> None:
             v = min(max(terms[b, k], low[k]), high[k])
             terms[b, k] = v
             r += v
-        if ended[b]:
+        ended = failed[b] or diverged[b]
+        terminated[b] = ended
+        if ended:
             r += steps_left[b] * penalty
+            success[b] = False
         rewards[b] = r
+        for j in range(obs.shape[1]):
+            obs32[b, j] = obs[b, j]
 
 
 class Runtime:
@@ -194,6 +205,7 @@ class Runtime:
         self.terminated = np.zeros(n, dtype=np.bool_)
         self.success = np.zeros(n, dtype=np.bool_)
         self.diverged = np.zeros(n, dtype=np.bool_)
+        self._failed = np.zeros(n, dtype=np.bool_)  # the task's failure, when it has one
         self.steps = np.zeros(n, dtype=np.int64)
         self._E = np.zeros((n, 2))
         self._C = np.zeros((n, s.n_c))
@@ -220,15 +232,16 @@ class Runtime:
         # compiles or loads them for exactly these types)
         self._observe = _warm(observe, self._rows_x, self.G, lay.ops, lay.obs_low,
                               lay.obs_high, self._obs64)  # fmt: skip
-        self._check_states = _warm(check_states, self.X, self._X_next, lay.limits,
-                                   self.diverged)  # fmt: skip
-        self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self.terminated,
-                             self._steps_left, float(self._lowest), self.R)  # fmt: skip
+        self._advance = _warm(advance, self.X, self._X_next, lay.limits, self.diverged,
+                              self.T, 0.0, self.steps, -1, self._steps_left)  # fmt: skip
+        self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self._failed,
+                             self.diverged, self._steps_left, float(self._lowest), self.R,
+                             self.terminated, self.success, self._obs64, self.O)  # fmt: skip
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
     def __getstate__(self):
         state = self.__dict__.copy()
-        for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_check_states",
+        for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish"):  # fmt: skip
             state.pop(k)
         return state
@@ -273,14 +286,9 @@ class Runtime:
             self.integrator, self.num_threads,
         )  # fmt: skip
         self.X, self._X_next = self._X_next, self.X
-        self.T += self.control_period
-        self.steps += 1
-        diverged = self._check_states(self.X, self._X_next, lay.limits, self.diverged)
-        if horizon is None:
-            self._steps_left[:] = 0.0
-        else:
-            np.subtract(horizon, self.steps, out=self._steps_left, casting="unsafe")
-            np.maximum(self._steps_left, 0.0, out=self._steps_left)
+        diverged = self._advance(self.X, self._X_next, lay.limits, self.diverged, self.T,
+                                 self.control_period, self.steps,
+                                 -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
         self._evaluate(self._steps_left)
         return bool(diverged)
 
@@ -292,18 +300,14 @@ class Runtime:
             for col, fn in self._derived:
                 self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
             np.clip(self._obs64, lay.obs_low, lay.obs_high, out=self._obs64)
-        self.O[:] = self._obs64
         for k, v in enumerate(self._reward(x, self.A, self.G, lay.p)):
             self.Q[:, k] = v
         self.success[:] = self._success(x, self.A, self.G, lay.p)
-        if self._failure is None:
-            self.terminated[:] = self.diverged
-        else:
-            np.logical_or(self._failure(x, self.A, self.G, lay.p), self.diverged,
-                          out=self.terminated)  # fmt: skip
-        self.success &= ~self.terminated
-        self._finish(self.Q, lay.term_low, lay.term_high, self.terminated, steps_left,
-                     float(self._lowest), self.R)  # fmt: skip
+        if self._failure is not None:
+            self._failed[:] = self._failure(x, self.A, self.G, lay.p)
+        self._finish(self.Q, lay.term_low, lay.term_high, self._failed, self.diverged,
+                     steps_left, float(self._lowest), self.R, self.terminated, self.success,
+                     self._obs64, self.O)  # fmt: skip
 
     def rows(self) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs."""
