@@ -49,7 +49,8 @@ def wilson_interval(successes: int, n: int, z: float = Z) -> Interval:
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return Interval(max(0.0, centre - half), min(1.0, centre + half))
+    # the interval holds p exactly; at p = 0 or 1 rounding alone would put it a hair outside
+    return Interval(min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half)))
 
 
 def mean_interval(samples, level: float = LEVEL) -> Interval:

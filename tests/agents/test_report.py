@@ -42,6 +42,16 @@ def test_wilson_interval_matches_published_values(k, n, low, high):
     assert (ci.low, ci.high) == pytest.approx((low, high), abs=1e-4)
 
 
+def test_wilson_interval_holds_the_observed_rate_at_every_count():
+    # at 100/100 rounding put the upper end at 1 - 1e-16, and the plot's error bar below
+    # the bar (matplotlib refuses negative errors): the interval must contain k / n exactly
+    for n in range(1, 201):
+        for k in (0, 1, n - 1, n):
+            if 0 <= k <= n:
+                ci = wilson_interval(k, n)
+                assert ci.low <= k / n <= ci.high, (k, n)
+
+
 def test_wilson_interval_rejects_impossible_counts():
     with pytest.raises(ValueError, match="0 <= successes <= n"):
         wilson_interval(21, 20)
