@@ -225,7 +225,7 @@ class Runtime:
         self._reward = compiled(task.reward)
         self._success = compiled(task.success)
         self._failure = None if task.failure is None else compiled(task.failure)
-        self._lowest = lay.lowest_reward
+        self._lowest = float(lay.lowest_reward)
         self._term_names = [t.name for t in task.terms]
         self._derived = [(col, compiled(fn)) for col, fn in lay.derived]
         # the kernels on the runtime's own arrays (bound after a call on copies, which
@@ -235,7 +235,7 @@ class Runtime:
         self._advance = _warm(advance, self.X, self._X_next, lay.limits, self.diverged,
                               self.T, 0.0, self.steps, -1, self._steps_left)  # fmt: skip
         self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self._failed,
-                             self.diverged, self._steps_left, float(self._lowest), self.R,
+                             self.diverged, self._steps_left, self._lowest, self.R,
                              self.terminated, self.success, self._obs64, self.O)  # fmt: skip
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -306,7 +306,7 @@ class Runtime:
         if self._failure is not None:
             self._failed[:] = self._failure(x, self.A, self.G, lay.p)
         self._finish(self.Q, lay.term_low, lay.term_high, self._failed, self.diverged,
-                     steps_left, float(self._lowest), self.R, self.terminated, self.success,
+                     steps_left, self._lowest, self.R, self.terminated, self.success,
                      self._obs64, self.O)  # fmt: skip
 
     def rows(self) -> np.ndarray:

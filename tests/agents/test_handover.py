@@ -100,6 +100,7 @@ def test_training_env_switches_and_its_shaping_telescopes():
     assert np.all(first < -50)  # the hanging start is far from the goal's energy
 
 
+@pytest.mark.slow  # trains (3 s): the fast suite stays under a minute
 def test_a_trained_run_with_handover_acts_through_lqr_after_loading(tmp_path):
     run = train(
         ACROBOT, "ppo", timesteps=512, n_envs=1, run_dir=tmp_path, eval_freq=512,
