@@ -239,6 +239,12 @@ class System:
         else:
             self._m.erk_batch(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
 
+    def kernels(self) -> tuple[ModuleType, np.record]:
+        """(module, parameters): the generated module of numba kernels (its `KEY` hashes all
+        of its code) and the parameter record they take, for code that calls them from its
+        own compiled loops (the environments' fused step)."""
+        return self._m, self._p
+
     def energy_terms_unchecked(self, T, X, out: np.ndarray) -> None:
         """`energy_terms` on contiguous float64 rows into `out` (N, 2), without checks."""
         self._m.energy_batch(T, X, self._p, out)

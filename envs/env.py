@@ -45,6 +45,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             )
         self.render_mode = render_mode
         self.action_space = spaces.Box(-1.0, 1.0, (len(lay.actuated),), np.float32)
+        self._action_shape = self.action_space.shape
         self.observation_space = spaces.Box(
             lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
         )
@@ -70,9 +71,13 @@ class LagrangianEnv(ContractMixin, gym.Env):
     def step(self, action):
         if not self._ready:
             raise RuntimeError("Call reset() before step().")
-        a = real_array(action, "action")
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"Expected action of shape {self.action_space.shape}, got {a.shape}.")
+        # float32 and float64 arrays go to the runtime as they are (it reads either)
+        if type(action) is np.ndarray and action.dtype.char in "fd":
+            a = action
+        else:
+            a = real_array(action, "action")
+        if a.shape != self._action_shape:
+            raise ValueError(f"Expected action of shape {self._action_shape}, got {a.shape}.")
         rt = self._rt
         if self._horizon is None:  # the registry's limit: known once make has set the spec
             self._horizon = horizon(self, self.task)
@@ -80,11 +85,10 @@ class LagrangianEnv(ContractMixin, gym.Env):
             diverged = rt.step(a.reshape(1, -1), self._horizon)
         except NonFiniteActions:
             raise ValueError(f"Action contains NaN or inf: {action!r}.") from None
-        terminated = bool(rt.terminated[0])
         info = self._info(diverged=diverged)
         if self.render_mode == "human":
             self.render()
-        return rt.O[0].copy(), float(rt.R[0]), terminated, False, info
+        return rt.O[0].copy(), rt.R.item(0), rt.terminated.item(0), False, info
 
     def _info(self, reset: bool = False, diverged: bool = False) -> dict[str, Any]:
         rt = self._rt
@@ -97,7 +101,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             info["goal"] = rt.G[0].copy()
         else:
             info["reward_terms"] = rt.reward_terms(0)
-            info["is_success"] = bool(rt.success[0])
+            info["is_success"] = rt.success.item(0)
             info["diverged"] = diverged
         if self.system.n_c:
             info["constraint_residual"] = rt.constraint_residual()[0]

@@ -13,7 +13,9 @@ declared bounds and summed), success and failure. A row that fails or diverges t
 and its reward carries the early-end penalty of `envs.task.Task`.
 
 The task's own functions are compiled with numba here when numba can type them, and called
-as plain Python otherwise (a warning says so once per function).
+as plain Python otherwise (a warning says so once per function). When all of them compile
+and one thread steps the rows, the whole step is one compiled call (`envs.fused`), with the
+same results bit for bit: the per-row arrays are views of a few flat buffers for that.
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ import warnings
 import numpy as np
 from numba import njit
 
+from dynamics.system import BLOCK, method_tableau
+
+from . import fused
 from .layout import Layout
 
 _COMPILED: dict = {}
@@ -100,10 +105,11 @@ def apply_actions(actions, max_input, actuated, clipped, U) -> bool:
 
 
 @njit(cache=True)
-def advance(X, X_prev, limits, diverged, T, dt, steps, horizon, steps_left) -> bool:
-    """After a step: time and step counts, the steps left to `horizon` (none when it is
-    negative: no time limit), and diverged[b] = some |X[b, i]| > limits[i] or non-finite,
-    a non-finite row put back to its previous (finite) state. Whether any row diverged."""
+def advance(X, X_next, limits, diverged, T, dt, steps, horizon, steps_left) -> bool:
+    """After a step into X_next: time and step counts, the steps left to `horizon` (none
+    when it is negative: no time limit), X = X_next row by row except where X_next is not
+    finite (that row keeps its previous, finite, state), and diverged[b] = some
+    |X_next[b, i]| > limits[i] or non-finite. Whether any row diverged."""
     any_bad = False
     for b in range(X.shape[0]):
         T[b] += dt
@@ -112,15 +118,15 @@ def advance(X, X_prev, limits, diverged, T, dt, steps, horizon, steps_left) -> b
         bad = False
         finite = True
         for i in range(X.shape[1]):
-            v = X[b, i]
+            v = X_next[b, i]
             if not np.isfinite(v):
                 finite = False
                 bad = True
             elif abs(v) > limits[i]:
                 bad = True
-        if not finite:
+        if finite:
             for i in range(X.shape[1]):
-                X[b, i] = X_prev[b, i]
+                X[b, i] = X_next[b, i]
         diverged[b] = bad
         any_bad |= bad
     return any_bad
@@ -171,6 +177,17 @@ def finish(terms, low, high, failed, diverged, steps_left, lowest, rewards, term
             obs32[b, j] = obs[b, j]
 
 
+def _pack(constants, dtype):
+    """[(name, start, size, shape or None for a scalar)] and the values in one flat array."""
+    table, parts, start = [], [], 0
+    for name, value in constants:
+        v = np.asarray(value, dtype=dtype)
+        table.append((name, start, v.size, None if v.ndim == 0 else v.shape))
+        parts.append(v.ravel())
+        start += v.size
+    return table, np.concatenate(parts)
+
+
 class Runtime:
     """N rows of a task (see the module docstring). Public arrays are read-only views for
     wrappers; `reset_rows` and `step` are the only writers."""
@@ -191,43 +208,111 @@ class Runtime:
         self.substeps = substeps
         self.integrator = integrator
         self.num_threads = num_threads
-        n_x = s.state_size
-        self.X = np.zeros((n, n_x))
-        self._X_next = np.zeros((n, n_x))
-        self.U = np.zeros((n, s.n_u))
-        self.T = np.zeros(n)
-        self.G = np.zeros((n, len(layout.goal_names)))
-        self.A = np.zeros((n, len(layout.actuated)))  # clipped actions
-        self.O = np.zeros((n, layout.obs_size), dtype=np.float32)
-        self._obs64 = np.zeros((n, layout.obs_size))
-        self.Q = np.zeros((n, len(layout.task.terms)))  # reward terms
-        self.R = np.zeros(n)
-        self.terminated = np.zeros(n, dtype=np.bool_)
-        self.success = np.zeros(n, dtype=np.bool_)
-        self.diverged = np.zeros(n, dtype=np.bool_)
-        self._failed = np.zeros(n, dtype=np.bool_)  # the task's failure, when it has one
+        n_x, n_rows = s.state_size, len(layout.row_names)
+        # every per-row array is a view of one of three flat buffers (float64, bool, and
+        # the step counts), so that the fused step takes them in a few arguments
+        self._floats = (
+            ("X", n_x), ("_X_next", n_x), ("U", s.n_u), ("T", None),
+            ("G", len(layout.goal_names)), ("A", len(layout.actuated)),
+            ("_obs64", layout.obs_size), ("Q", len(layout.task.terms)), ("R", None),
+            ("_rows_x", n_rows), ("_Y", len(s.output_names)), ("_steps_left", None),
+            ("_E", 2), ("_C", s.n_c),
+        )  # fmt: skip
+        self._bools = ("terminated", "success", "diverged", "_failed")
+        width = sum(1 if w is None else w for _, w in self._floats)
+        self._F = np.zeros(n * width)
+        self._B = np.zeros(n * len(self._bools), dtype=np.bool_)
         self.steps = np.zeros(n, dtype=np.int64)
-        self._E = np.zeros((n, 2))
-        self._C = np.zeros((n, s.n_c))
-        self._Y = np.zeros((n, len(s.output_names)))
-        self._rows_x = np.zeros((n, len(layout.row_names)))
-        self._steps_left = np.zeros(n)
+        self.O = np.zeros((n, layout.obs_size), dtype=np.float32)
+        self._views()
         self._compile()
+
+    def _views(self) -> None:
+        """The per-row arrays as views of the flat buffers (see __init__)."""
+        n, start = self.n, 0
+        for name, w in self._floats:
+            size = 1 if w is None else w
+            view = self._F[n * start : n * (start + size)]
+            setattr(self, name, view if w is None else view.reshape(n, w))
+            start += size
+        for k, name in enumerate(self._bools):
+            setattr(self, name, self._B[n * k : n * (k + 1)])
+        self._E0 = self._E[0]  # row views for the single env's info, stable: never swapped
+
+    def _plan(self):
+        """(plan, constants as float64, constants as int64) of the fused step."""
+        lay, s = self.layout, self.system
+        a, w, c = method_tableau(self.integrator)
+        floats, start = [], 0
+        fused_names = {"X": "X", "_X_next": "XN", "U": "U", "T": "T", "G": "G", "A": "A",
+                       "_obs64": "obs64", "Q": "Q", "R": "R", "_rows_x": "rows_x", "_Y": "Y",
+                       "_steps_left": "steps_left"}  # fmt: skip
+        for name, width in self._floats:
+            if name in fused_names:
+                floats.append((fused_names[name], start, width))
+            start += 1 if width is None else width
+        bools = [(b, k) for k, b in enumerate(("terminated", "success", "diverged_rows", "failed"))]
+        h = self.control_period / self.substeps
+        real = [("max_input", lay.max_input), ("limits", lay.limits), ("obs_low", lay.obs_low),
+                ("obs_high", lay.obs_high), ("term_low", lay.term_low),
+                ("term_high", lay.term_high), ("ta", a), ("tw", w), ("tc", c), ("h", h),
+                ("dt", self.control_period), ("lowest", self._lowest)]  # fmt: skip
+        whole = [("actuated", lay.actuated), ("ops", lay.ops), ("output_index", lay.output_index),
+                 ("substeps", self.substeps), ("block", BLOCK)]  # fmt: skip
+        real_constants, C = _pack(real, np.float64)
+        whole_constants, K = _pack(whole, np.int64)
+        plan = {
+            "model_key": s.kernels()[0].KEY,
+            "floats": floats,
+            "bools": bools,
+            "constants": real_constants + whole_constants,
+            "integer_constants": {k for k, _ in whole},
+            "outputs": list(lay.output_index),
+            "n_x": s.state_size,
+            "n_obs": lay.obs_size,
+            "derived": [col for col, _ in lay.derived],
+            "n_terms": len(lay.task.terms),
+            "failure": lay.task.failure is not None,
+        }
+        return plan, C, K
+
+    def _compile_fused(self, compiled_functions: dict) -> None:
+        """The fused step (envs.fused), when every task function is compiled and one
+        thread steps the rows; else None (the step of separate calls)."""
+        self._fused = None
+        self._fused_bound: dict = {}
+        if self.num_threads > 1 and self.n > BLOCK:
+            return
+        if not all(hasattr(f, "py_func") for f in compiled_functions.values()):
+            return
+        module, _ = self.system.kernels()
+        functions = {
+            "_apply": apply_actions, "_advance": advance, "_observe": observe,
+            "_finish": finish, "_erk": module.erk_batch, "_outputs": module.outputs_batch,
+            **compiled_functions,
+        }  # fmt: skip
+        plan, self._fused_C, self._fused_K = self._plan()
+        self._fused = fused.build(plan, functions)
 
     def _compile(self) -> None:
         lay = self.layout
         sample = (self._rows_x, self.A, self.G, lay.p)
         task = lay.task
 
-        def compiled(fn):
-            return bind(compile_task_function(fn, sample), sample)
-
-        self._reward = compiled(task.reward)
-        self._success = compiled(task.success)
-        self._failure = None if task.failure is None else compiled(task.failure)
+        jitted = {"_reward": compile_task_function(task.reward, sample),
+                  "_success": compile_task_function(task.success, sample)}  # fmt: skip
+        if task.failure is not None:
+            jitted["_failure"] = compile_task_function(task.failure, sample)
+        for k, (_, fn) in enumerate(lay.derived):
+            jitted[f"_derived_{k}"] = compile_task_function(fn, sample)
+        self._reward = bind(jitted["_reward"], sample)
+        self._success = bind(jitted["_success"], sample)
+        self._failure = None if task.failure is None else bind(jitted["_failure"], sample)
         self._lowest = float(lay.lowest_reward)
         self._term_names = [t.name for t in task.terms]
-        self._derived = [(col, compiled(fn)) for col, fn in lay.derived]
+        self._derived = [
+            (col, bind(jitted[f"_derived_{k}"], sample)) for k, (col, _) in enumerate(lay.derived)
+        ]
         # the kernels on the runtime's own arrays (bound after a call on copies, which
         # compiles or loads them for exactly these types)
         self._observe = _warm(observe, self._rows_x, self.G, lay.ops, lay.obs_low,
@@ -237,17 +322,24 @@ class Runtime:
         self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self._failed,
                              self.diverged, self._steps_left, self._lowest, self.R,
                              self.terminated, self.success, self._obs64, self.O)  # fmt: skip
+        module, self._p_model = self.system.kernels()
+        self._energy = _warm(module.energy_batch, self.T, self.X, self._p_model, self._E)
+        self._compile_fused(jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
     def __getstate__(self):
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
-                  "_finish"):  # fmt: skip
-            state.pop(k)
+                  "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy",
+                  "_E0"):  # fmt: skip
+            state.pop(k, None)
+        for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
+            state.pop(name)
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+        self._views()
         self._compile()
 
     # ---- the two operations --------------------------------------------------------------
@@ -279,18 +371,39 @@ class Runtime:
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
         lay = self.layout
+        if self._fused is not None:
+            f = actions.flags
+            step = self._fused_bound.get((actions.dtype, f.c_contiguous, f.writeable, f.aligned))
+            if step is None:
+                step = self._bind_fused(actions)
+            code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
+                        self._fused_K, self._p_model, lay.p,
+                        -1 if horizon is None else horizon)  # fmt: skip
+            if code < 0:
+                raise NonFiniteActions("actions contain NaN or inf")
+            return code > 0
         if not apply_actions(actions, lay.max_input, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
         self.system.step_unchecked(
             self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
             self.integrator, self.num_threads,
         )  # fmt: skip
-        self.X, self._X_next = self._X_next, self.X
         diverged = self._advance(self.X, self._X_next, lay.limits, self.diverged, self.T,
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
         self._evaluate(self._steps_left)
         return bool(diverged)
+
+    def _bind_fused(self, actions: np.ndarray):
+        """The fused step's machine code for arrays like `actions` (compiled or loaded from
+        numba's cache on first use), bound as `bind` does."""
+        f = actions.flags
+        args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
+                self._p_model, self.layout.p, -1)  # fmt: skip
+        self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
+        step = bind(self._fused, args)
+        self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
+        return step
 
     def _evaluate(self, steps_left: np.ndarray) -> None:
         lay = self.layout
@@ -323,13 +436,14 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self.system.energy_terms_unchecked(self.T, self.X, self._E)
+        self._energy(self.T, self.X, self._p_model, self._E)
         return self._E.sum(axis=1)
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self.system.energy_terms_unchecked(self.T, self.X, self._E)
-        return float(self._E[0, 0] + self._E[0, 1])
+        self._energy(self.T, self.X, self._p_model, self._E)
+        kinetic, potential = self._E0.tolist()
+        return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""

@@ -1,0 +1,205 @@
+"""One compiled step per (model, task): the runtime's whole step in one numba call.
+
+The runtime's step is a chain of compiled pieces (clip and scale the actions, integrate,
+check divergence, the observation, the task's reward, success and failure, the results)
+that each cost a Python call, argument unboxing and boxed results: for the single env,
+more than the integration itself. Here the chain is written out as the source of one
+numba function, in a generated module of the model cache, whose globals are the pieces
+themselves; the runtime's arrays are views of a few flat buffers, so the call takes ten
+arguments whatever the task.
+
+numba caches that function's machine code on disk but keys it only on its own source,
+not on the functions it calls. So the module's name hashes the source of everything it
+reaches: the model module's key, the runtime's kernels, and the task's functions with
+every function, constant and closure they reach in turn (`fingerprint`). A task whose
+functions reach something that cannot be fingerprinted, or that numba cannot compile,
+keeps the step of separate calls (the same results bit for bit).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import types
+
+import numpy as np
+
+from dynamics import cache
+
+LIBRARIES = ("numpy", "numba", "math", "cmath", "builtins")
+"""Top-level packages whose functions are identified by name (their code changes with
+their version, which numba's cache already keys on), not hashed."""
+
+
+def fingerprint(*objs) -> str | None:
+    """sha256 of the code of `objs` and of everything it reaches (functions, numba
+    dispatchers, closures, defaults, module attributes it names, constants), or None if it
+    reaches an object whose content cannot be hashed."""
+    h = hashlib.sha256()
+    seen: set[int] = set()
+    for obj in objs:
+        if not _feed(h, obj, seen):
+            return None
+    return h.hexdigest()
+
+
+def _names(code: types.CodeType):
+    yield from code.co_names
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            yield from _names(const)
+
+
+def _feed_code(h, code: types.CodeType) -> None:
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _feed_code(h, const)
+        else:
+            h.update(repr((type(const).__name__, const)).encode())
+
+
+def _library(obj) -> bool:
+    module = getattr(obj, "__module__", None) or ""
+    return module.partition(".")[0] in LIBRARIES
+
+
+def _feed(h, obj, seen: set[int]) -> bool:
+    obj = getattr(obj, "py_func", obj)  # a numba dispatcher: its Python function
+    if isinstance(obj, (bool, int, float, complex, str, bytes, type(None), np.generic)):
+        h.update(repr((type(obj).__name__, obj)).encode())
+        return True
+    if isinstance(obj, (tuple, list, frozenset)):
+        h.update(f"{type(obj).__name__}{len(obj)}".encode())
+        return all(_feed(h, v, seen) for v in obj)
+    if isinstance(obj, np.ndarray):
+        h.update(f"{obj.dtype}{obj.shape}".encode())
+        h.update(np.ascontiguousarray(obj).tobytes())
+        return True
+    if isinstance(obj, types.ModuleType):
+        h.update(f"module {obj.__name__}".encode())
+        return True
+    if isinstance(obj, (type, types.BuiltinFunctionType, np.ufunc)) or (
+        callable(obj) and _library(obj)
+    ):
+        h.update(f"{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', obj)}".encode())
+        return True
+    if not isinstance(obj, types.FunctionType):
+        return False
+    h.update(f"function {obj.__module__}.{obj.__qualname__}".encode())
+    if id(obj) in seen:
+        return True
+    seen.add(id(obj))
+    _feed_code(h, obj.__code__)
+    cells = tuple(c.cell_contents for c in obj.__closure__ or ())
+    if not all(_feed(h, v, seen) for v in (obj.__defaults__ or ()) + cells):
+        return False
+    g = obj.__globals__
+    names = set(_names(obj.__code__))
+    for name in sorted(names):
+        if name not in g:
+            continue
+        value = g[name]
+        h.update(f"global {name}".encode())
+        if not _feed(h, value, seen):
+            return False
+        if isinstance(value, types.ModuleType):  # module.attr: the attributes it names
+            for attr in sorted(names):
+                member = getattr(value, attr, None)
+                if isinstance(member, types.FunctionType) or hasattr(member, "py_func"):
+                    h.update(f"{name}.{attr}".encode())
+                    if not _feed(h, member, seen):
+                        return False
+    return True
+
+
+# ---- the generated step --------------------------------------------------------------------
+def _segment(lines: list[str], name: str, buf: str, start: int, width: int | None) -> None:
+    """`name` = rows start.. of the flat buffer `buf` (width None: a column per row)."""
+    if width is None:
+        lines.append(f"    {name} = {buf}[n * {start}:n * {start + 1}]")
+    else:
+        lines.append(f"    {name} = {buf}[n * {start}:n * {start + width}].reshape((n, {width}))")
+
+
+def source(plan: dict) -> str:
+    """The generated module's text for a runtime's `plan` (see `Runtime._plan`)."""
+    lines = [
+        "from numba import njit",
+        "",
+        "# Globals set by envs.fused before the first call: the runtime's kernels (_apply,",
+        "# _advance, _observe, _finish), the model's (_erk, _outputs) and the task's (_reward,",
+        "# _success, _failure, _derived_k). The module's name hashes all of their code.",
+        "",
+        "",
+        "@njit(cache=True, error_model='numpy')",
+        "def step(actions, F, B, I, O, C, K, p, q, horizon):",
+        '    """One control period of every row; -1 (nothing changed) for a NaN or inf',
+        '    action, else 1 if some row diverged, 0 if none did."""',
+        "    n = actions.shape[0]",
+    ]
+    for name, start, width in plan["floats"]:
+        _segment(lines, name, "F", start, width)
+    for name, start in plan["bools"]:
+        _segment(lines, name, "B", start, None)
+    for name, start, length, shape in plan["constants"]:
+        buf = "K" if name in plan["integer_constants"] else "C"
+        if shape is None:
+            lines.append(f"    {name} = {buf}[{start}]")
+        else:
+            lines.append(f"    {name} = {buf}[{start}:{start + length}]")
+            if len(shape) == 2:
+                lines[-1] += f".reshape(({shape[0]}, {shape[1]}))"
+    lines += [
+        "    if not _apply(actions, max_input, actuated, A, U):",
+        "        return -1",
+        "    _erk(T, X, U, p, h, substeps, ta, tw, tc, XN, block)",
+        "    diverged = _advance(X, XN, limits, diverged_rows, T, dt, I, horizon, steps_left)",
+    ]
+    if plan["outputs"]:
+        lines += [
+            "    _outputs(T, X, U, p, Y)",
+            "    for b in range(n):",
+            f"        for i in range({plan['n_x']}):",
+            "            rows_x[b, i] = X[b, i]",
+            f"        for j in range({len(plan['outputs'])}):",
+            f"            rows_x[b, {plan['n_x']} + j] = Y[b, output_index[j]]",
+            "    x = rows_x",
+        ]
+    else:
+        lines.append("    x = X")
+    lines.append("    _observe(x, G, ops, obs_low, obs_high, obs64)")
+    for k, col in enumerate(plan["derived"]):
+        lines.append(f"    obs64[:, {col}] = _derived_{k}(x, A, G, q)")
+    if plan["derived"]:
+        lines += [
+            "    for b in range(n):",
+            f"        for j in range({plan['n_obs']}):",
+            "            obs64[b, j] = min(max(obs64[b, j], obs_low[j]), obs_high[j])",
+        ]
+    lines.append("    terms = _reward(x, A, G, q)")
+    for k in range(plan["n_terms"]):
+        lines.append(f"    Q[:, {k}] = terms[{k}]")
+    lines.append("    success[:] = _success(x, A, G, q)")
+    if plan["failure"]:
+        lines.append("    failed[:] = _failure(x, A, G, q)")
+    lines += [
+        "    _finish(Q, term_low, term_high, failed, diverged_rows, steps_left, lowest, R,",
+        "            terminated, success, obs64, O)",
+        "    return 1 if diverged else 0",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def build(plan: dict, functions: dict):
+    """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher),
+    or None when they cannot be fingerprinted."""
+    digest = fingerprint(*(functions[k] for k in sorted(functions)))
+    if digest is None:
+        return None
+    body = source(plan)
+    key = hashlib.sha256(f"{plan['model_key']} {digest}\n{body}".encode()).hexdigest()
+    module = cache.load("step", key, f"KEY = {key!r}\n{body}")
+    module.__dict__.update(functions)
+    return module.step

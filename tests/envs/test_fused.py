@@ -1,0 +1,159 @@
+"""The fused step (envs/fused.py): the same numbers as the step of separate calls, and a
+fingerprint that changes with anything the task's functions reach (numba's disk cache
+does not look past the function it caches)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+from envs import arm
+from envs.fused import fingerprint
+from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
+
+IDS = list(envs.ENV_IDS) + [
+    "Examples/CartPole-v0",
+    "Examples/Furuta-v0",
+    "Examples/DoubleCartPole-v0",
+]
+
+
+def _pair(env_id, n, **kwargs):
+    fused, separate = (
+        gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs) for _ in range(2)
+    )
+    assert fused.unwrapped._rt._fused is not None
+    separate.unwrapped._rt._fused = None  # the step of separate calls
+    return fused, separate
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_fused_step_equals_the_separate_calls_bit_for_bit(env_id):
+    fused, separate = _pair(env_id, 3, max_episode_steps=7)  # crosses episode ends
+    o1, _ = fused.reset(seed=5)
+    o2, _ = separate.reset(seed=5)
+    rng = np.random.default_rng(0)
+    for _ in range(25):
+        a = rng.uniform(-1.5, 1.5, fused.action_space.shape).astype(np.float32)  # clipped
+        s1, s2 = fused.step(a), separate.step(a)
+        for v1, v2 in zip(s1[:4], s2[:4]):
+            assert np.array_equal(v1, v2)
+        for k in ("state", "is_success", "diverged"):
+            assert np.array_equal(s1[4][k], s2[4][k])
+        for k, v in s1[4]["reward_terms"].items():
+            assert np.array_equal(v, s2[4]["reward_terms"][k])
+
+
+def test_the_fused_step_ends_a_diverging_row_like_the_separate_calls():
+    # one 2 s step at full torque leaves the arm's rate limit behind: divergence ends it
+    fused, separate = _pair("Lagrange/TwoLinkArm-v1", 2, control_period=2.0, substeps=2)
+    fused.reset(seed=0)
+    separate.reset(seed=0)
+    a = np.array([[1.0, 1.0], [0.0, 0.0]], np.float32)
+    s1, s2 = fused.step(a), separate.step(a)
+    assert s1[4]["diverged"][0] and s1[2][0]
+    for v1, v2 in zip(s1[:4], s2[:4]):
+        assert np.array_equal(v1, v2)
+    assert np.array_equal(fused.unwrapped.state, separate.unwrapped.state)
+    assert np.isfinite(fused.unwrapped.state).all()
+
+
+def test_the_fused_step_takes_any_action_dtype_and_refuses_nan():
+    env = gym.make("Lagrange/BeadOnRod-v1").unwrapped
+    env.reset(seed=0)
+    for a in (np.zeros(1, np.float32), np.zeros(1), np.zeros(1, np.int64), [0.5]):
+        env.step(a)
+    readonly = np.zeros(1)
+    readonly.setflags(write=False)
+    env.step(readonly)
+    before = env.state
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(np.array([np.nan]))
+    assert np.array_equal(env.state, before)  # nothing changed
+
+
+def test_many_threads_over_many_rows_keep_the_separate_calls():
+    vec = gym.make_vec(
+        "Lagrange/TwoLinkArm-v1", 130, vectorization_mode="vector_entry_point", num_threads=2
+    )
+    assert vec.unwrapped._rt._fused is None  # blocks spread over threads
+    one = gym.make_vec("Lagrange/TwoLinkArm-v1", 130, vectorization_mode="vector_entry_point")
+    assert one.unwrapped._rt._fused is not None
+    a = np.full((130, 2), 0.3, np.float32)
+    vec.reset(seed=1)
+    one.reset(seed=1)
+    for _ in range(3):
+        assert np.array_equal(vec.step(a)[0], one.step(a)[0])
+
+
+# ---- the fingerprint -----------------------------------------------------------------------
+HELPER = """
+import numpy as np
+from numba import njit
+
+SCALE = {scale}
+
+
+@njit(cache=False)
+def helper(x):
+    return {body}
+
+
+def reward(x, a, g, p):
+    return (-SCALE * helper(x[:, 0]),)
+"""
+
+
+def _module(tmp_path, name, scale=1.0, body="x * x"):
+    path = tmp_path / f"{name}.py"
+    path.write_text(HELPER.format(scale=scale, body=body))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_fingerprint_follows_constants_and_helpers_the_function_reaches(tmp_path):
+    base = fingerprint(_module(tmp_path, "fp_a").reward)
+    assert base is not None
+    assert fingerprint(_module(tmp_path, "fp_a").reward) == base  # reloaded: unchanged
+    assert fingerprint(_module(tmp_path, "fp_a", scale=2.0).reward) != base  # a constant
+    assert fingerprint(_module(tmp_path, "fp_a", body="x * x * x").reward) != base  # a helper
+
+
+_OPAQUE = object()
+
+
+def _reaches_an_opaque_object(x, a, g, p):
+    return _OPAQUE
+
+
+def test_a_function_reaching_an_opaque_object_has_no_fingerprint():
+    assert fingerprint(_reaches_an_opaque_object) is None
+    assert fingerprint(arm.reward, arm.success) is not None
+
+
+def _closure_reward(weight):
+    def reward(x, a, g, p):
+        z = np.zeros(len(x))
+        return -weight * x[:, 0] ** 2, z, z, z
+
+    return reward
+
+
+def test_closures_are_fingerprinted_by_their_cells():
+    assert fingerprint(_closure_reward(1.0)) == fingerprint(_closure_reward(1.0))
+    assert fingerprint(_closure_reward(1.0)) != fingerprint(_closure_reward(2.0))
+    # and the runtime compiles each into its own fused step
+    task = envs.Task(**{**arm.TASK.__dict__, "reward": _closure_reward(3.0)})
+    env = envs.LagrangianEnv(task)
+    env.reset(seed=0)
+    _, r, *_ = env.step(np.zeros(2, np.float32))
+    assert env._rt._fused is not None
+    assert r == pytest.approx(-3.0 * env.state[0] ** 2 + 0.0, rel=1e-12)
