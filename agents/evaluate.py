@@ -129,7 +129,8 @@ def make_agent(name: str, env, seed: int = 0):
             return policy
         from .handover import HandOverPolicy, handover_options
 
-        return HandOverPolicy(policy, env, handover_options(policy.handover)["level"])
+        h = handover_options(policy.handover)
+        return HandOverPolicy(policy, env, h["level"], h["verify"], h["verify_level"])
     raise UserError(
         f"Unknown agent {name!r}: expected one of {', '.join(BASELINES)} or the path of a "
         f"trained model (model.zip or its run directory)."

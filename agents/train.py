@@ -197,8 +197,11 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
     handover = handover_options(hp.get("handover"))
     if handover is not None:  # the agent learns in the closed loop it will act in
         gamma = float(hp.get("gamma", 0.99))
+        # the agent learns to aim at the level set; it is evaluated as it will act, with
+        # the verified states added (agents.handover)
+        check = {k: handover[k] for k in ("verify", "verify_level")}
         train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
-        eval_env = HandOverVecEnv(eval_env, handover["level"])
+        eval_env = HandOverVecEnv(eval_env, handover["level"], **check)
     norm = _normalize_kwargs(hp)
     if norm is not None:
         train_env = VecNormalize(train_env, **norm)

@@ -188,11 +188,11 @@ TASK_V2 = dataclasses.replace(
             "n_timesteps": 3_000_000,
             "n_steps": 512,
             "gamma": 0.998,
-            "learning_rate": 3.0e-4,
+            "learning_rate": "lin_3.0e-4",
             "ent_coef": 0.01,
             "normalize": {"norm_obs": True, "norm_reward": True, "gamma": 0.998},
             "policy_kwargs": {"net_arch": [64, 64], "log_std_init": 0.5},
-            "handover": {"level": 1000.0, "shaping": 100.0},
+            "handover": {"level": 1000.0, "shaping": 100.0, "verify": 3.0},
         },
         # trajectory optimisation + TVLQR (agents.plan): a 4 s swing-up from the hanging start
         "plan": {"horizon": 4.0},

@@ -46,6 +46,37 @@ def test_lqr_captures_from_the_declared_level_set():
     assert (info["is_success"] & ~ended).mean() >= 0.95
 
 
+def test_verified_capture_is_what_the_env_does_under_lqr():
+    # the check simulates the env's own model, so it must agree row for row with LQR run in
+    # the env itself, for states spread between the level set and the verify level
+    episodes, horizon = 60, 3.0
+    vec = gym.make_vec(ACROBOT, num_envs=episodes, vectorization_mode="vector_entry_point")
+    try:
+        obs, _ = vec.reset(seed=0)
+        capture = CaptureSet(vec, _level(), verify=horizon)
+        x0, u0 = vec.unwrapped.operating_point()
+        P = capture.lqr.design(x0[0], u0[0]).P
+        z = np.random.default_rng(1).normal(size=(episodes, 4))
+        dx = np.linalg.solve(np.linalg.cholesky(P).T, z.T).T
+        levels = capture.level * np.geomspace(1.0, 20.0, episodes)
+        dx *= np.sqrt(levels / np.einsum("bi,ij,bj->b", dx, P, dx))[:, None]
+        goals = vec.unwrapped.goal
+        obs, _ = vec.reset(seed=0, options={"state": x0 + dx, "goal": goals})
+        _, _, _, cost = capture.cost(obs)
+        checked = capture.captures(vec.unwrapped.state, goals, x0, u0)
+        ended = np.zeros(episodes, dtype=bool)
+        for _ in range(capture.verify_steps):
+            a = capture.lqr.act(vec.unwrapped.state, x0, u0)  # exact states, as simulated
+            obs, _, terminated, _, info = vec.step(a)
+            ended |= terminated
+    finally:
+        vec.close()
+    np.testing.assert_array_equal(checked, info["is_success"] & ~ended)
+    assert 0 < checked.sum() < episodes  # both answers occur on this spread of levels
+    assert capture.simulated == episodes
+    assert np.all(cost >= capture.level * 0.999)  # none of them inside the ellipsoid
+
+
 class Constant:
     """A stand-in for a trained model: the same action everywhere."""
 
@@ -114,7 +145,17 @@ def test_a_trained_run_with_handover_acts_through_lqr_after_loading(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "raw", [{"shaping": 1.0}, {"level": -1.0}, {"level": 5.0, "shaping": -1}, [500], {"x": 1}]
+    "raw",
+    [
+        {"shaping": 1.0},
+        {"level": -1.0},
+        {"level": 5.0, "shaping": -1},
+        {"level": 5.0, "verify": float("nan")},
+        {"level": 5.0, "verify_level": 1.0},
+        {"level": "high"},
+        [500],
+        {"x": 1},
+    ],
 )
 def test_bad_handover_options_are_refused(raw):
     with pytest.raises(UserError, match="handover"):
@@ -123,4 +164,9 @@ def test_bad_handover_options_are_refused(raw):
 
 def test_handover_options_default_to_no_shaping():
     assert handover_options(None) is None
-    assert handover_options({"level": 500}) == {"level": 500.0, "shaping": 0.0}
+    assert handover_options({"level": 500}) == {
+        "level": 500.0,
+        "verify_level": 10000.0,
+        "shaping": 0.0,
+        "verify": 0.0,
+    }
