@@ -64,9 +64,13 @@ def main(argv: list[str] | None = None) -> int:
             for f in files + sorted(root.glob(".*.lock")):
                 f.unlink(missing_ok=True)
             shutil.rmtree(root / "__pycache__", ignore_errors=True)
-            print(f"removed {len(files)} compiled models from {root}")
+            print(f"removed {len(files)} compiled modules from {root}")
         else:
-            print(f"{root}: {len(files)} compiled models")
+            steps = [f for f in files if f.name.startswith("step_")]  # envs' fused steps
+            print(
+                f"{root}: {len(files) - len(steps)} compiled models, {len(steps)} compiled "
+                "env steps"
+            )
             for f in files:
                 print(f"  {f.name}")
         return 0

@@ -1,4 +1,5 @@
-"""On-disk cache of generated model modules.
+"""On-disk cache of generated model modules (and of the environments' fused steps,
+`envs/fused.py`, which use the same mechanism).
 
 Each compiled model is one Python file named by a key that hashes everything its code depends
 on; numba keeps its machine code beside it (``__pycache__``). The file's first line records

@@ -59,6 +59,13 @@ def _feed_code(h, code: types.CodeType) -> None:
             h.update(repr((type(const).__name__, const)).encode())
 
 
+def _cell(cell):
+    try:
+        return cell.cell_contents
+    except ValueError:  # not assigned yet (a nested function referring to itself)
+        return "<empty cell>"
+
+
 def _library(obj) -> bool:
     module = getattr(obj, "__module__", None) or ""
     return module.partition(".")[0] in LIBRARIES
@@ -91,7 +98,7 @@ def _feed(h, obj, seen: set[int]) -> bool:
         return True
     seen.add(id(obj))
     _feed_code(h, obj.__code__)
-    cells = tuple(c.cell_contents for c in obj.__closure__ or ())
+    cells = tuple(_cell(c) for c in obj.__closure__ or ())
     if not all(_feed(h, v, seen) for v in (obj.__defaults__ or ()) + cells):
         return False
     g = obj.__globals__
