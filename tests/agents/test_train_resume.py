@@ -156,6 +156,7 @@ def test_resume_removes_what_killed_writes_left_behind(tmp_path):
     assert again.timesteps == 512  # a finished run resumes to nothing to do
 
 
+@pytest.mark.slow  # trains three times: ~2.2 s
 def test_a_resumed_run_evaluates_on_the_same_timesteps_as_an_uninterrupted_one(tmp_path):
     # evaluations every 384 steps; the first part stops at its 512-step checkpoint
     whole, parts = tmp_path / "whole", tmp_path / "parts"

@@ -56,6 +56,7 @@ def test_equations_equal_725_with_joint_motor_forces(arm):
     assert diff.applyfunc(sp.simplify) == sp.zeros(2, 1)
 
 
+@pytest.mark.slow  # simplifies two symbolic differences: ~1.7 s
 def test_book_generalised_forces_hold_for_net_link_torques(arm):
     # The book's Q1 = M1 is right when its M1 is the net motor torque on link 1 (ours M1 - M2):
     # the printed Q1 = M1 with joint torques is the erratum recorded in docs/errata.md.

@@ -42,6 +42,7 @@ def test_system_pickles_and_deep_copies():
         )
 
 
+@pytest.mark.slow  # a cold derivation and numba compilation in a new process: ~1.2 s
 def test_pickle_rebuilds_from_its_own_source_in_a_fresh_cache(tmp_path):
     system = dynamics.get_model("two_link_arm").compile()
     blob = pickle.dumps(system)
@@ -134,6 +135,7 @@ def test_new_cache_directory_is_private(tmp_path, monkeypatch):
     assert stat.S_IMODE(cache.cache_dir().stat().st_mode) == 0o700
 
 
+@pytest.mark.slow  # a cold derivation and numba compilation: ~2.3 s
 def test_a_tampered_module_is_not_run_and_is_rebuilt(copied_cache, tmp_path):
     marker = tmp_path / "ran"
     text = copied_cache.read_text()

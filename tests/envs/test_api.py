@@ -304,6 +304,7 @@ def test_diverging_simulation_terminates_with_finite_observation():
     assert term and not trunc and info["diverged"]
 
 
+@pytest.mark.slow  # two new processes: ~2.8 s
 def test_rendering_without_a_display_is_quiet_for_arrays_and_says_so_for_windows():
     import subprocess
     import sys
