@@ -140,17 +140,17 @@ def source(plan: dict) -> str:
         "",
         "",
         "@njit(cache=True, error_model='numpy')",
-        "def step(actions, F, B, I, O, C, K, p, q, horizon):",
+        "def step(actions, F_, B_, steps, O, C_, K_, p, q, horizon):",
         '    """One control period of every row; -1 (nothing changed) for a NaN or inf',
         '    action, else 1 if some row diverged, 0 if none did."""',
         "    n = actions.shape[0]",
     ]
     for name, start, width in plan["floats"]:
-        _segment(lines, name, "F", start, width)
+        _segment(lines, name, "F_", start, width)
     for name, start in plan["bools"]:
-        _segment(lines, name, "B", start, None)
+        _segment(lines, name, "B_", start, None)
     for name, start, length, shape in plan["constants"]:
-        buf = "K" if name in plan["integer_constants"] else "C"
+        buf = "K_" if name in plan["integer_constants"] else "C_"
         if shape is None:
             lines.append(f"    {name} = {buf}[{start}]")
         else:
@@ -160,8 +160,9 @@ def source(plan: dict) -> str:
     lines += [
         "    if not _apply(actions, max_input, actuated, A, U):",
         "        return -1",
-        "    _erk(T, X, U, p, h, substeps, ta, tw, tc, XN, block)",
-        "    diverged = _advance(X, XN, limits, diverged_rows, T, dt, I, horizon, steps_left)",
+        "    _erk(T, X, U, p, h, substeps, ta, tw, tc, X_next, block)",
+        "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
+        "                            steps_left)",
     ]
     if plan["outputs"]:
         lines += [
@@ -191,9 +192,9 @@ def source(plan: dict) -> str:
     if plan["failure"]:
         lines.append("    failed[:] = _failure(x, A, G, q)")
     lines += [
-        "    _finish(Q, term_low, term_high, failed, diverged_rows, steps_left, lowest, R,",
+        "    _finish(Q, term_low, term_high, failed, diverged, steps_left, lowest, R,",
         "            terminated, success, obs64, O)",
-        "    return 1 if diverged else 0",
+        "    return 1 if any_diverged else 0",
         "",
     ]
     return "\n".join(lines)

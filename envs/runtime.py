@@ -227,14 +227,20 @@ class Runtime:
         self._views()
         self._compile()
 
+    def _segments(self):
+        """(name, start, width or None for one value a row) of each float array in _F,
+        whose rows start..start + width (times n) it occupies."""
+        start = 0
+        for name, w in self._floats:
+            yield name, start, w
+            start += 1 if w is None else w
+
     def _views(self) -> None:
         """The per-row arrays as views of the flat buffers (see __init__)."""
-        n, start = self.n, 0
-        for name, w in self._floats:
-            size = 1 if w is None else w
-            view = self._F[n * start : n * (start + size)]
+        n = self.n
+        for name, start, w in self._segments():
+            view = self._F[n * start : n * (start + (1 if w is None else w))]
             setattr(self, name, view if w is None else view.reshape(n, w))
-            start += size
         for k, name in enumerate(self._bools):
             setattr(self, name, self._B[n * k : n * (k + 1)])
         self._E0 = self._E[0]  # row views for the single env's info, stable: never swapped
@@ -243,15 +249,9 @@ class Runtime:
         """(plan, constants as float64, constants as int64) of the fused step."""
         lay, s = self.layout, self.system
         a, w, c = method_tableau(self.integrator)
-        floats, start = [], 0
-        fused_names = {"X": "X", "_X_next": "XN", "U": "U", "T": "T", "G": "G", "A": "A",
-                       "_obs64": "obs64", "Q": "Q", "R": "R", "_rows_x": "rows_x", "_Y": "Y",
-                       "_steps_left": "steps_left"}  # fmt: skip
-        for name, width in self._floats:
-            if name in fused_names:
-                floats.append((fused_names[name], start, width))
-            start += 1 if width is None else width
-        bools = [(b, k) for k, b in enumerate(("terminated", "success", "diverged_rows", "failed"))]
+        # the generated step names each array as the runtime does, less the underscore
+        floats = [(name.lstrip("_"), start, w) for name, start, w in self._segments()]
+        bools = [(name.lstrip("_"), k) for k, name in enumerate(self._bools)]
         h = self.control_period / self.substeps
         real = [("max_input", lay.max_input), ("limits", lay.limits), ("obs_low", lay.obs_low),
                 ("obs_high", lay.obs_high), ("term_low", lay.term_low),
