@@ -31,9 +31,9 @@ The goal (inverted) is fixed, so it is not observed; `goal_from_observation` ret
 (pi, pi).
 
 ## Action Space
-`Box(-1, 1, (1,), float32)`; action 1 is the input's limit (`max_input`, overridable
-when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
-ValueError, complex ones TypeError.
+`Box(-1, 1, (1,), float32)`; action -1 and 1 are the input's limits (`max_input`,
+overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
+actions raise ValueError, complex ones TypeError.
 
 | Num | Input | Limit |
 |-----|-------|-------|

@@ -20,9 +20,9 @@ configuration can be held. The goal angles theta1*, theta2* are observed through
 sin, and so are the wrapped goal errors, so that a policy need not learn angle differences.
 
 ## Action Space
-`Box(-1, 1, (2,), float32)`; action 1 is the input's limit (`max_input`, overridable
-when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
-ValueError, complex ones TypeError.
+`Box(-1, 1, (2,), float32)`; action -1 and 1 are the input's limits (`max_input`,
+overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
+actions raise ValueError, complex ones TypeError.
 
 | Num | Input | Limit |
 |-----|-------|-------|

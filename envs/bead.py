@@ -16,9 +16,9 @@ either end.
 Holding the bead at rest at r needs m g r (0.98 N*m at the end of the default rod).
 
 ## Action Space
-`Box(-1, 1, (1,), float32)`; action 1 is the input's limit (`max_input`, overridable
-when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
-ValueError, complex ones TypeError.
+`Box(-1, 1, (1,), float32)`; action -1 and 1 are the input's limits (`max_input`,
+overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
+actions raise ValueError, complex ones TypeError.
 
 | Num | Input | Limit |
 |-----|-------|-------|

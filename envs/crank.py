@@ -21,9 +21,9 @@ are the model's outputs `slider_x`, `slider_v`. `operating_point(obs)` regulates
 the crank angle, of the two that put the slider at x*, nearest the current crank angle.
 
 ## Action Space
-`Box(-1, 1, (1,), float32)`; action 1 is the input's limit (`max_input`, overridable
-when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
-ValueError, complex ones TypeError.
+`Box(-1, 1, (1,), float32)`; action -1 and 1 are the input's limits (`max_input`,
+overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
+actions raise ValueError, complex ones TypeError.
 
 | Num | Input | Limit |
 |-----|-------|-------|

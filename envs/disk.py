@@ -23,9 +23,9 @@ coordinates x, z, psi are not observed (`state_from_observation` returns them as
 x', z' from the rolling constraints).
 
 ## Action Space
-`Box(-1, 1, (2,), float32)`; action 1 is the input's limit (`max_input`, overridable
-when the env is made). Actions outside [-1, 1] are clipped; NaN or inf actions raise
-ValueError, complex ones TypeError.
+`Box(-1, 1, (2,), float32)`; action -1 and 1 are the input's limits (`max_input`,
+overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
+actions raise ValueError, complex ones TypeError.
 
 | Num | Input | Limit |
 |-----|-------|-------|

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import rendering
-from .contract import ContractMixin, horizon, make_runtime, real_array, start_rows
+from .contract import ContractMixin, horizon, make_runtime, real_array
 from .runtime import NonFiniteActions
 from .task import Task
 
@@ -35,7 +35,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
 
     def __init__(self, task: Task, render_mode: str | None = None, **options: Any):
         self._rt = make_runtime(task, 1, options)
-        lay = self._rt.layout
+        lay = self._rt.plant
         fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata = {**type(self).metadata, "render_fps": fps}
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -60,7 +60,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
     # ---- Gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        x, g = start_rows(self._rt.layout, [self.np_random], options, [0], None)
+        x, g = self._rt.plant.start_rows([self.np_random], options, [0], None)
         self._rt.reset_rows([0], x, g)
         self._ready = True
         self._history = []
@@ -136,6 +136,6 @@ def draw(env, surface, x, g, history) -> None:
     """One frame: the task's `draw`, or the generic dials and sliders."""
     task = env.task
     if task.draw is not None:
-        task.draw(surface, x, g, env.layout.p, history)
+        task.draw(surface, x, g, env.plant.p, history)
     else:
-        rendering.draw_generic(surface, x, env.layout)
+        rendering.draw_generic(surface, x, env.plant)

@@ -158,7 +158,7 @@ def source(plan: dict) -> str:
             if len(shape) == 2:
                 lines[-1] += f".reshape(({shape[0]}, {shape[1]}))"
     lines += [
-        "    if not _apply(actions, max_input, actuated, A, U):",
+        "    if not _apply(actions, input_mid, input_half, actuated, A, U):",
         "        return -1",
         "    _erk(T, X, U, p, h, substeps, ta, tw, tc, X_next, block)",
         "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
@@ -176,33 +176,46 @@ def source(plan: dict) -> str:
         ]
     else:
         lines.append("    x = X")
+    args = "x, A, G, q"
+    if plan["named"]:  # the task functions read their inputs by name (envs.names)
+        lines.append(f"    # named inputs: {', '.join(plan['types'])}")
+        for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
+                                        ("x", "A", "G"), plan["widths"]):  # fmt: skip
+            cols = ", ".join(f"{src}[:, {i}]" for i in range(width))
+            lines.append(f"    {var} = {cls}({cols})")
+        args = "xs, as_, gs, q"
     lines.append("    _observe(x, G, ops, obs_low, obs_high, obs64)")
     for k, col in enumerate(plan["derived"]):
-        lines.append(f"    obs64[:, {col}] = _derived_{k}(x, A, G, q)")
+        lines.append(f"    obs64[:, {col}] = _derived_{k}({args})")
     if plan["derived"]:
         lines += [
             "    for b in range(n):",
             f"        for j in range({plan['n_obs']}):",
             "            obs64[b, j] = min(max(obs64[b, j], obs_low[j]), obs_high[j])",
         ]
-    lines.append("    terms = _reward(x, A, G, q)")
-    for k in range(plan["n_terms"]):
-        lines.append(f"    Q[:, {k}] = terms[{k}]")
-    lines.append("    success[:] = _success(x, A, G, q)")
+    if plan["named"]:
+        for k in range(plan["n_terms"]):
+            lines.append(f"    Q[:, {k}] = _term_{k}({args})")
+    else:
+        lines.append("    terms = _reward(x, A, G, q)")
+        for k in range(plan["n_terms"]):
+            lines.append(f"    Q[:, {k}] = terms[{k}]")
+    lines.append(f"    success[:] = _success({args})")
     if plan["failure"]:
-        lines.append("    failed[:] = _failure(x, A, G, q)")
+        lines.append(f"    failed[:] = _failure({args})")
     lines += [
-        "    _finish(Q, term_low, term_high, failed, diverged, steps_left, lowest, R,",
-        "            terminated, success, obs64, O)",
-        "    return 1 if any_diverged else 0",
+        "    bad = _finish(Q, term_low, term_high, failed, diverged, steps_left, lowest, R,",
+        "                  terminated, success, obs64, obs_low, O)",
+        "    return 1 if any_diverged or bad else 0",
         "",
     ]
     return "\n".join(lines)
 
 
-def build(plan: dict, functions: dict):
-    """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher),
-    or None when they cannot be fingerprinted."""
+def build(plan: dict, functions: dict, types: dict | None = None):
+    """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher)
+    and `types` (the named inputs' namedtuple classes, named in the source by their
+    field hash), or None when the functions cannot be fingerprinted."""
     digest = fingerprint(*(functions[k] for k in sorted(functions)))
     if digest is None:
         return None
@@ -210,4 +223,5 @@ def build(plan: dict, functions: dict):
     key = hashlib.sha256(f"{plan['model_key']} {digest}\n{body}".encode()).hexdigest()
     module = cache.load("step", key, f"KEY = {key!r}\n{body}")
     module.__dict__.update(functions)
+    module.__dict__.update(types or {})
     return module.step

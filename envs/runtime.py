@@ -20,6 +20,7 @@ same results bit for bit: the per-row arrays are views of a few flat buffers for
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -28,10 +29,19 @@ from numba import njit
 
 from dynamics.system import BLOCK, method_tableau
 
-from . import fused
-from .layout import Layout
+from . import checks, fused, names
+from .plant import Plant
+from .task import Derived
 
 _COMPILED: dict = {}
+
+
+def _name(fn) -> str:
+    return getattr(fn, "__qualname__", repr(fn))
+
+
+def _derived_features(task):
+    return [f for f in task.observation if isinstance(f, Derived)]
 
 
 class NonFiniteActions(ValueError):
@@ -39,8 +49,9 @@ class NonFiniteActions(ValueError):
 
 
 def compile_task_function(fn, args):
-    """`fn` compiled with numba (cached on disk when its module allows), or `fn` itself
-    when numba cannot type it; `args` is a sample call used to find out."""
+    """`fn` compiled with numba, bounds-checked (an index slip raises IndexError, never
+    reads another buffer) and cached on disk when its module allows, or `fn` itself when
+    numba cannot type it; `args` is a sample call used to find out."""
     key = (fn, tuple(type(a) for a in args))
     if key in _COMPILED:
         return _COMPILED[key]
@@ -52,7 +63,7 @@ def compile_task_function(fn, args):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", numba.NumbaWarning)
-                jitted = numba.njit(cache=cache)(fn)
+                jitted = numba.njit(cache=cache, boundscheck=True)(fn)
                 jitted(*args)
             compiled = jitted
             break
@@ -89,9 +100,10 @@ def _warm(kernel, *args):
 
 
 @njit(cache=True)
-def apply_actions(actions, max_input, actuated, clipped, U) -> bool:
-    """Clip actions to [-1, 1] into `clipped` and scale them into the actuated columns of
-    the input rows U; False (and nothing written) if any action is NaN or inf."""
+def apply_actions(actions, input_mid, input_half, actuated, clipped, U) -> bool:
+    """Clip actions to [-1, 1] into `clipped` and map them into the actuated columns of
+    the input rows U (input = mid + action * half: action -1 and 1 are the input's
+    limits); False (and nothing written) if any action is NaN or inf."""
     for b in range(actions.shape[0]):
         for j in range(actions.shape[1]):
             if not np.isfinite(actions[b, j]):
@@ -100,7 +112,7 @@ def apply_actions(actions, max_input, actuated, clipped, U) -> bool:
         for j in range(actions.shape[1]):
             a = min(max(actions[b, j], -1.0), 1.0)
             clipped[b, j] = a
-            U[b, actuated[j]] = a * max_input[j]
+            U[b, actuated[j]] = input_mid[j] + a * input_half[j]
     return True
 
 
@@ -156,17 +168,32 @@ def observe(X, G, ops, low, high, out) -> None:
 
 @njit(cache=True)
 def finish(terms, low, high, failed, diverged, steps_left, lowest, rewards, terminated,
-           success, obs, obs32) -> None:  # fmt: skip
+           success, obs, obs_low, obs32) -> bool:  # fmt: skip
     """Clip each reward term into its bounds and sum them; a row terminates when it failed
     or diverged, and then adds the early-end penalty steps_left * min(0, lowest) and is no
-    success; the observation is handed out as float32."""
+    success; the observation is handed out as float32. A NaN or inf reward term or
+    observation (a task function's) counts as divergence: the value becomes its lower
+    bound, so nothing non-finite reaches the agent. Whether that happened to some row."""
     penalty = min(0.0, lowest)
+    any_bad = False
     for b in range(terms.shape[0]):
         r = 0.0
+        bad = False
         for k in range(terms.shape[1]):
-            v = min(max(terms[b, k], low[k]), high[k])
+            v = terms[b, k]
+            if not np.isfinite(v):
+                bad = True
+                v = low[k]
+            v = min(max(v, low[k]), high[k])
             terms[b, k] = v
             r += v
+        for j in range(obs.shape[1]):
+            if not np.isfinite(obs[b, j]):
+                bad = True
+                obs[b, j] = obs_low[j]
+        if bad:
+            diverged[b] = True
+            any_bad = True
         ended = failed[b] or diverged[b]
         terminated[b] = ended
         if ended:
@@ -175,6 +202,7 @@ def finish(terms, low, high, failed, diverged, steps_left, lowest, rewards, term
         rewards[b] = r
         for j in range(obs.shape[1]):
             obs32[b, j] = obs[b, j]
+    return any_bad
 
 
 def _pack(constants, dtype):
@@ -192,22 +220,17 @@ class Runtime:
     """N rows of a task (see the module docstring). Public arrays are read-only views for
     wrappers; `reset_rows` and `step` are the only writers."""
 
-    def __init__(
-        self,
-        layout: Layout,
-        n: int,
-        control_period: float,
-        substeps: int,
-        integrator: str = "rk4",
-        num_threads: int = 1,
-    ):
-        self.layout = layout
-        self.system = s = layout.system
+    def __init__(self, plant: Plant, n: int, *legacy):
+        if legacy:  # the former (layout, n, control_period, substeps, integrator, threads)
+            names = ("control_period", "substeps", "integrator", "num_threads")
+            plant = dataclasses.replace(plant, **dict(zip(names, legacy)))
+        self.plant = layout = plant
+        self.system = s = plant.system
         self.n = n
-        self.control_period = control_period
-        self.substeps = substeps
-        self.integrator = integrator
-        self.num_threads = num_threads
+        self.control_period = plant.control_period
+        self.substeps = plant.substeps
+        self.integrator = plant.integrator
+        self.num_threads = plant.num_threads
         n_x, n_rows = s.state_size, len(layout.row_names)
         # every per-row array is a view of one of three flat buffers (float64, bool, and
         # the step counts), so that the fused step takes them in a few arguments
@@ -226,6 +249,11 @@ class Runtime:
         self.O = np.zeros((n, layout.obs_size), dtype=np.float32)
         self._views()
         self._compile()
+
+    @property
+    def layout(self) -> Plant:
+        """Former name of `plant`."""
+        return self.plant
 
     def _segments(self):
         """(name, start, width or None for one value a row) of each float array in _F,
@@ -253,7 +281,7 @@ class Runtime:
         floats = [(name.lstrip("_"), start, w) for name, start, w in self._segments()]
         bools = [(name.lstrip("_"), k) for k, name in enumerate(self._bools)]
         h = self.control_period / self.substeps
-        real = [("max_input", lay.max_input), ("limits", lay.limits), ("obs_low", lay.obs_low),
+        real = [("input_mid", lay.input_mid), ("input_half", lay.input_half), ("limits", lay.limits), ("obs_low", lay.obs_low),
                 ("obs_high", lay.obs_high), ("term_low", lay.term_low),
                 ("term_high", lay.term_high), ("ta", a), ("tw", w), ("tc", c), ("h", h),
                 ("dt", self.control_period), ("lowest", self._lowest)]  # fmt: skip
@@ -273,6 +301,9 @@ class Runtime:
             "derived": [col for col, _ in lay.derived],
             "n_terms": len(lay.task.terms),
             "failure": lay.task.failure is not None,
+            "named": lay.task.named,
+            "widths": (len(lay.row_names), len(lay.actuated), len(lay.goal_names)),
+            "types": [cls.__name__ for cls in self._types],
         }
         return plan, C, K
 
@@ -292,27 +323,74 @@ class Runtime:
             **compiled_functions,
         }  # fmt: skip
         plan, self._fused_C, self._fused_K = self._plan()
-        self._fused = fused.build(plan, functions)
+        types = dict(zip(("_Rows", "_Actions", "_Goal"), self._types))
+        self._fused = fused.build(plan, functions, types)
+
+    def _task_functions(self) -> dict:
+        """role -> (label, fn, named): the task's functions; a named task has one reward
+        function per term ('term_k'), a task of the former form one 'reward'."""
+        task, plant = self.plant.task, self.plant
+        out = {}
+        if task.named:
+            for k, t in enumerate(task.terms):
+                out[f"term_{k}"] = (f"term {t.name!r} ({_name(t.fn)})", t.fn)
+        else:
+            out["reward"] = (f"reward ({_name(task.reward)})", task.reward)
+        out["success"] = (f"success ({_name(task.success)})", task.success)
+        if task.failure is not None:
+            out["failure"] = (f"failure ({_name(task.failure)})", task.failure)
+        for k, ((_, fn), f) in enumerate(zip(plant.derived, _derived_features(task))):
+            out[f"derived_{k}"] = (f"Derived({f.name!r}) ({_name(fn)})", fn)
+        return out
 
     def _compile(self) -> None:
-        lay = self.layout
-        sample = (self._rows_x, self.A, self.G, lay.p)
+        lay = self.plant
         task = lay.task
+        functions = self._task_functions()
+        named = task.named
+        self._types = (
+            names.record_type("Rows", lay.row_names),
+            names.record_type("Actions", task.actuated),
+            names.record_type("Goal", lay.goal_names),
+        )
+        positional = {
+            role: (label, names.caller(fn, *self._types) if named else fn)
+            for role, (label, fn) in functions.items()
+        }
+        trial = {r: v for r, v in positional.items() if not r.startswith("term_")}
+        if named:  # the terms together, as the reward of the former form returns them
+            terms = [fn for r, (_, fn) in positional.items() if r.startswith("term_")]
+            trial = {"reward": ("reward terms", lambda *args: [f(*args) for f in terms]), **trial}
+        checks.trial_run(lay, trial)
 
-        jitted = {"_reward": compile_task_function(task.reward, sample),
-                  "_success": compile_task_function(task.success, sample)}  # fmt: skip
-        if task.failure is not None:
-            jitted["_failure"] = compile_task_function(task.failure, sample)
-        for k, (_, fn) in enumerate(lay.derived):
-            jitted[f"_derived_{k}"] = compile_task_function(fn, sample)
-        self._reward = bind(jitted["_reward"], sample)
-        self._success = bind(jitted["_success"], sample)
-        self._failure = None if task.failure is None else bind(jitted["_failure"], sample)
+        sample = (self._rows_x, self.A, self.G, lay.p)
+        if named:
+            sample_named = (
+                *(names.columns(cls, a) for cls, a in zip(self._types, sample[:3])),
+                lay.p,
+            )
+            jitted = {
+                f"_{r}": compile_task_function(fn, sample_named) for r, (_, fn) in functions.items()
+            }
+            calls = {r: names.caller(jitted[f"_{r}"], *self._types) for r in functions}
+            term_calls = [calls[r] for r in functions if r.startswith("term_")]
+            self._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
+            self._success = calls["success"]
+            self._failure = calls.get("failure")
+            self._derived = [(col, calls[f"derived_{k}"]) for k, (col, _) in enumerate(lay.derived)]
+        else:
+            jitted = {
+                f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()
+            }
+            self._reward = bind(jitted["_reward"], sample)
+            self._success = bind(jitted["_success"], sample)
+            self._failure = None if task.failure is None else bind(jitted["_failure"], sample)
+            self._derived = [
+                (col, bind(jitted[f"_derived_{k}"], sample))
+                for k, (col, _) in enumerate(lay.derived)
+            ]
         self._lowest = float(lay.lowest_reward)
         self._term_names = [t.name for t in task.terms]
-        self._derived = [
-            (col, bind(jitted[f"_derived_{k}"], sample)) for k, (col, _) in enumerate(lay.derived)
-        ]
         # the kernels on the runtime's own arrays (bound after a call on copies, which
         # compiles or loads them for exactly these types)
         self._observe = _warm(observe, self._rows_x, self.G, lay.ops, lay.obs_low,
@@ -321,7 +399,8 @@ class Runtime:
                               self.T, 0.0, self.steps, -1, self._steps_left)  # fmt: skip
         self._finish = _warm(finish, self.Q, lay.term_low, lay.term_high, self._failed,
                              self.diverged, self._steps_left, self._lowest, self.R,
-                             self.terminated, self.success, self._obs64, self.O)  # fmt: skip
+                             self.terminated, self.success, self._obs64, lay.obs_low,
+                             self.O)  # fmt: skip
         module, self._p_model = self.system.kernels()
         self._energy = _warm(module.energy_batch, self.T, self.X, self._p_model, self._E)
         self._compile_fused(jitted)
@@ -330,7 +409,7 @@ class Runtime:
     def __getstate__(self):
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
-                  "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy",
+                  "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
                   "_E0"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
@@ -382,7 +461,7 @@ class Runtime:
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
             return code > 0
-        if not apply_actions(actions, lay.max_input, lay.actuated, self.A, self.U):
+        if not apply_actions(actions, lay.input_mid, lay.input_half, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
         self.system.step_unchecked(
             self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
@@ -391,8 +470,8 @@ class Runtime:
         diverged = self._advance(self.X, self._X_next, lay.limits, self.diverged, self.T,
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
-        self._evaluate(self._steps_left)
-        return bool(diverged)
+        bad = self._evaluate(self._steps_left)
+        return bool(diverged) or bool(bad)
 
     def _bind_fused(self, actions: np.ndarray):
         """The fused step's machine code for arrays like `actions` (compiled or loaded from
@@ -405,7 +484,7 @@ class Runtime:
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
         return step
 
-    def _evaluate(self, steps_left: np.ndarray) -> None:
+    def _evaluate(self, steps_left: np.ndarray) -> bool:
         lay = self.layout
         x = self.rows()
         self._observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
@@ -418,9 +497,10 @@ class Runtime:
         self.success[:] = self._success(x, self.A, self.G, lay.p)
         if self._failure is not None:
             self._failed[:] = self._failure(x, self.A, self.G, lay.p)
-        self._finish(self.Q, lay.term_low, lay.term_high, self._failed, self.diverged,
-                     steps_left, self._lowest, self.R, self.terminated, self.success,
-                     self._obs64, self.O)  # fmt: skip
+        return self._finish(self.Q, lay.term_low, lay.term_high, self._failed,
+                            self.diverged, steps_left, self._lowest, self.R,
+                            self.terminated, self.success, self._obs64, lay.obs_low,
+                            self.O)  # fmt: skip
 
     def rows(self) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs."""

@@ -2,32 +2,43 @@
 
 A `Task` names what an environment is about: the model it runs on, the inputs the action
 drives, the observation (features with units and bounds), the goal or command, the reward
-terms with their bounds, success and failure, the start distribution, and what agents need
-(operating point, LQR weights and region, a heuristic, training hyperparameters). From it
-the runtime builds the observation map, `observation_space`, the inverse maps (observation
--> state and goal) and the env docstring's tables.
+terms with their bounds and functions, success and failure, the start distribution, and
+what agents need (operating point, LQR weights and region, a heuristic, training
+hyperparameters). From it the plant (`envs.plant`) builds the observation map,
+`observation_space`, the inverse maps (observation -> state and goal) and the env
+docstring's tables (`envs.docs`).
 
-Task functions are plain vectorised numpy over rows, all with one signature::
+Task functions are plain vectorised numpy over rows, and read their inputs by name::
 
-    def reward(x, a, g, p):  # -> one (N,) array per reward term, in declared order
-    def success(x, a, g, p):  # -> (N,) bool
-    def failure(x, a, g, p):  # -> (N,) bool: the episode terminates (with the penalty)
+    def angle(x, a, goal, p):  # a reward term: Term("angle", low, high, fn=angle)
+        return -wrap(x.theta1 - goal.theta1_star) ** 2
+    def success(x, a, goal, p):  # -> (N,) bool
+    def failure(x, a, goal, p):  # -> (N,) bool: the episode terminates (with the penalty)
 
-x: (N, 2n + k) rows of the state [q, qdot] followed by the task's declared model outputs;
-a: (N, n_a) clipped actions in [-1, 1]; g: (N, n_g) goals; p: the parameters, read by
-name (`p.m1`, `p.radius`): the model's parameters and the task's `constants`. The runtime
-compiles them with numba when it can (use `dynamics.wrap` for angles) and otherwise calls
-them as they are. Any number in a declaration (a bound, a limit, a range) may instead name a
-parameter or constant of p ("rod_length") or be a function of p, resolved once when the env
-is built.
+x: the rows' state components by name (coordinates, their rates `<name>_dot`, then the
+task's declared model outputs); a: the clipped actions in [-1, 1] by actuated input;
+goal: the goal components (`*` in a name reads `_star`); each an (N,) array. p: the model's
+parameters and the task's `constants` (`p.m1`, `p.g`). See `envs.names`. The inputs are
+read-only: compute new arrays. Each function runs once as numpy on sample rows when the env
+is made (`envs.checks.trial_run`: shapes, booleans, finiteness, index slips name the
+function); the runtime then compiles it with numba, bounds-checked, when it can (use
+`dynamics.wrap` for angles), and otherwise calls it as it is.
+
+Any number in a declaration (a bound, a limit, a range) may instead name a parameter or
+constant of p ("rod_length") or be a function of p, resolved once when the env is built.
+
+The former form, one `reward(x, a, g, p)` returning every term in order with x, a, g 2-D
+arrays read by column number, still works.
 """
 
 from __future__ import annotations
 
-import textwrap
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
+
+from .checks import check_task
 
 Number = float | str | Callable[[Any], float]
 """A number, the name of a parameter or constant of p, or a function of p giving one."""
@@ -100,13 +111,15 @@ class Goal:
 
 @dataclass(frozen=True)
 class Term:
-    """A reward term and its bounds: the runtime clips the term into [low, high], so the
-    bounds hold by construction (they decide the early-end penalty, see `Task`)."""
+    """A reward term, its bounds and its function `fn(x, a, goal, p) -> (N,)`: the runtime
+    clips the term into [low, high], so the bounds hold by construction (they decide the
+    early-end penalty, see `Task`). Finite bounds only."""
 
     name: str
     low: Number
     high: Number
     doc: str = ""
+    fn: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -148,7 +161,8 @@ class Task:
     max_input: the physical limit of each actuated input (N*m or N), action 1 maps to it
         (numbers, or one function of p giving them all).
     observation: the features, in order (see `Angle`, `AngleError`, `Value`, `Derived`).
-    reward, terms: the reward function and its `Term`s, in the order it returns them.
+    terms: the reward's `Term`s, each with its function (the reward is their sum); or
+        `reward`, one function returning every term in order (the former form).
     success: the task's success criterion (reported as info["is_success"]).
     failure: states that end the episode as failed (terminated), or None.
     goal: the goal's components (`Goal`); () for a task without one.
@@ -176,9 +190,9 @@ class Task:
     actuated: tuple[str, ...]
     max_input: tuple[Number, ...] | Callable
     observation: tuple[Feature, ...]
-    reward: Callable
-    terms: tuple[Term, ...]
-    success: Callable
+    reward: Callable | None = None
+    terms: tuple[Term, ...] = ()
+    success: Callable | None = None
     failure: Callable | None = None
     goal: tuple[Goal, ...] = ()
     start: Mapping[str, tuple[Number, Number]] | Callable = field(default_factory=dict)
@@ -188,7 +202,7 @@ class Task:
     operating_point: Mapping[str, Any] | Callable | None = None
     control_period: float = 0.05
     substeps: int = 10
-    integrator: str = "rk4"  # "rk4" or "dop853" (dynamics.methods), `substeps` of it
+    integrator: str = "dop853"  # "dop853" or "rk4" (dynamics.methods), `substeps` of it
     max_episode_steps: int = 200
     lqr: LQRHints = field(default_factory=LQRHints)
     heuristic: Heuristic | None = None
@@ -197,71 +211,20 @@ class Task:
     draw: Callable | None = None
 
     def __post_init__(self):
-        if not self.actuated:
-            raise ValueError(f"Task {self.name!r}: `actuated` names no input.")
-        if not callable(self.max_input) and len(self.max_input) != len(self.actuated):
-            raise ValueError(
-                f"Task {self.name!r}: {len(self.max_input)} max_input values for "
-                f"{len(self.actuated)} actuated inputs {self.actuated}."
+        check_task(self, (Angle, AngleError, Value, Derived), Goal, Term, LQRHints, Heuristic)
+        if self.reward is not None:
+            warnings.warn(
+                f"Task {self.name!r}: `reward(x, a, g, p)` reading columns by number is the "
+                "former form; give each Term its function (`Term(..., fn=...)`), which "
+                "reads inputs by name (see envs.task).",
+                DeprecationWarning,
+                stacklevel=3,
             )
-        names = [t.name for t in self.terms]
-        if not names or len(set(names)) != len(names):
-            raise ValueError(f"Task {self.name!r}: reward terms must be named once each: {names}.")
-        goals = [g.name for g in self.goal]
-        if len(set(goals)) != len(goals):
-            raise ValueError(f"Task {self.name!r}: repeated goal component in {goals}.")
 
-    # ---- documentation -------------------------------------------------------------------
-    def describe(self, **params) -> str:
-        """The action, observation and reward-term tables (Markdown) at these model
-        parameters (defaults otherwise): what the env docstring shows."""
-        from .layout import build_layout
-
-        return self.tables(build_layout(self, params))
-
-    def tables(self, layout) -> str:
-        """The '## Action Space' and '## Observation Space' sections of the env docstring,
-        for a built `layout` (see `envs.layout.Layout`)."""
-        prose = (
-            f"`Box(-1, 1, ({len(self.actuated)},), float32)`; action 1 is the input's limit "
-            "(`max_input`, overridable when the env is made). Actions outside [-1, 1] are "
-            "clipped; NaN or inf actions raise ValueError, complex ones TypeError."
-        )
-        lines = [
-            "## Action Space",
-            *textwrap.wrap(prose, 88),
-            "",
-            "| Num | Input | Limit |",
-            "|-----|-------|-------|",
-        ]
-        for i, (name, limit) in enumerate(zip(self.actuated, layout.max_input)):
-            lines.append(f"| {i} | {name} | {limit:.4g} |")
-        lines += [
-            "",
-            "## Observation Space",
-            f"`Box(low, high, ({layout.obs_size},), float32)`:",
-            "",
-            "| Num | Observation | Min | Max | Unit |",
-            "|-----|-------------|-----|-----|------|",
-        ]
-        for i, (label, lo, hi, unit) in enumerate(layout.columns):
-            lines.append(f"| {i} | {label} | {lo:.4g} | {hi:.4g} | {unit} |")
-        lines += ["", "## Reward terms", "", "| Term | Min | Max | Meaning |", "|---|---|---|---|"]
-        for term, lo, hi in zip(self.terms, layout.term_low, layout.term_high):
-            lines.append(f"| {term.name} | {lo:.4g} | {hi:.4g} | {term.doc} |")
-        return "\n".join(lines)
-
-
-def document(doc: str, task: Task, **params) -> str:
-    """`doc` (a Gymnasium-style env docstring) with the generated action, observation and
-    reward-term tables of `task` (at its default parameters) put between its
-    '## Description' and '## Rewards' sections, replacing earlier generated ones."""
-    tables = task.describe(**params)
-    head, sep, tail = doc.partition("## Rewards\n")
-    if not sep:
-        return doc.rstrip() + "\n\n" + tables + "\n"
-    head = head.split("## Action Space\n")[0].rstrip() + "\n\n"
-    return head + tables + "\n\n" + sep + tail
+    @property
+    def named(self) -> bool:
+        """Whether the task's functions read their inputs by name (see the module docstring)."""
+        return self.reward is None
 
 
 __all__ = [
@@ -275,6 +238,5 @@ __all__ = [
     "Task",
     "Term",
     "Value",
-    "document",
     "resolve",
 ]

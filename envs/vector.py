@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import rendering
-from .contract import ContractMixin, make_runtime, positive_int, real_array, start_rows
+from .contract import ContractMixin, make_runtime, positive_int, real_array
 from .env import LagrangianEnv, draw
 from .task import Task
 
@@ -65,7 +65,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata = {**type(self).metadata, "render_fps": fps, "autoreset_mode": mode}
         # the spaces of one copy are the single env's, built from the same layout
-        lay = self._rt.layout
+        lay = self._rt.plant
         one = gym.spaces.Box(
             lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
         )
@@ -85,7 +85,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
                 raise ValueError(f"Expected {self.num_envs} seeds, got {len(seeds)}.")
             self._rngs = [seeding.np_random(s)[0] for s in seeds]
         rows = list(range(self.num_envs))
-        x, g = start_rows(self._rt.layout, self._rngs, options, rows, self.num_envs)
+        x, g = self._rt.plant.start_rows(self._rngs, options, rows, self.num_envs)
         self._rt.reset_rows(rows, x, g)
         self._done[:] = False
         self._ready = True
@@ -128,7 +128,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
 
     def _reset_rows(self, rows: np.ndarray) -> None:
         rows = rows.tolist()
-        x, g = start_rows(self._rt.layout, self._rngs, None, rows, self.num_envs)
+        x, g = self._rt.plant.start_rows(self._rngs, None, rows, self.num_envs)
         self._rt.reset_rows(rows, x, g)
 
     def _info(self, reset: bool = False) -> dict[str, Any]:

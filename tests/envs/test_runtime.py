@@ -202,7 +202,7 @@ def test_a_task_function_numba_cannot_type_runs_as_python_with_a_warning():
         ({"observation": (envs.Value("theta1"),)}, "needs a finite bound"),
         ({"actuated": ("M3", "M2")}, "actuates 'M3'"),
         ({"limits": {"theta_1": 1.0}}, "unknown state component 'theta_1'"),
-        ({"max_input": (1.0,)}, "1 max_input values for 2 actuated"),
+        ({"max_input": (1.0,)}, "needs one limit per actuated input"),
         ({"model": 42}, "model must be"),
     ],
 )
