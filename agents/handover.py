@@ -32,7 +32,6 @@ from __future__ import annotations
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from envs.runtime import Runtime
 
 from .common import UserError, lagrange_env
 from .lqr import LQRPolicy
@@ -90,7 +89,7 @@ class CaptureSet:
         reach = VERIFY_REACH * self.level
         self.verify_level = reach if verify_level is None else float(verify_level)
         self.simulated = 0  # rows checked by simulation (for reports)
-        self._sims: dict[int, Runtime] = {}
+        self._sims: dict = {}
 
     @classmethod
     def from_options(cls, env, options: dict) -> CaptureSet:
@@ -119,7 +118,7 @@ class CaptureSet:
         sim = self._sims.get(m)
         if sim is None:
             env = self.env
-            sim = Runtime(env.layout, m, env.control_period, env.substeps, env.integrator)
+            sim = env.plant.simulator(m)
             self._sims[m] = sim
         sim.reset_rows(np.arange(m), x, g)
         ended = np.zeros(m, dtype=bool)

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-from envs.layout import state_names
+from envs.plant import state_names
 
 __all__ = [
     "Controllability",

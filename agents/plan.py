@@ -121,7 +121,7 @@ def plan_options(env, **overrides) -> dict:
 
 def action_matrix(env) -> np.ndarray:
     """S (n_u, n_a): the model inputs u = S a of normalised actions a."""
-    n_a = len(env.layout.actuated)
+    n_a = len(env.plant.actuated)
     return env.action_to_input(np.eye(n_a)).T
 
 

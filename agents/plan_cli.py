@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{deviation:.3g}, {len(actions)} steps"
     )
     if args.plot:
-        names = policy.env.layout.state_names
+        names = policy.env.plant.state_names
         plot(args.plot, env_id, tracker, states, actions, names)
         print(f"wrote {args.plot}")
     return 0

@@ -86,7 +86,7 @@ def input_response(system, x: np.ndarray, actuated: list[int]) -> tuple[np.ndarr
 
 def _actuated(env) -> list[int]:
     """Model inputs the action drives, in action order."""
-    return [int(i) for i in env.layout.actuated]
+    return [int(i) for i in env.plant.actuated]
 
 
 class GravityPDPolicy(Policy):

@@ -78,7 +78,7 @@ def start_centre(env) -> np.ndarray | None:
     """The centre of the task's start distribution (None when `start` is a function)."""
     from envs.task import resolve
 
-    lay = env.layout
+    lay = env.plant
     if callable(lay.task.start):
         return None
     x = np.zeros(env.system.state_size)

@@ -111,17 +111,24 @@ RATE_TOLERANCE = 1.0
 """... and both rates below this (rad/s)."""
 
 
-def reward(x, a, g, p):
-    reach = p.l + 2 * p.l2
-    height = -(p.l * np.cos(x[:, 0]) + 2 * p.l2 * np.cos(x[:, 1])) / reach
-    return height, -0.01 * (x[:, 2] ** 2 + x[:, 3] ** 2), -0.001 * a[:, 0] ** 2
+def height(x, a, goal, p):
+    """The tip's height over the arm's reach, in [-1, 1]."""
+    return -(p.l * np.cos(x.theta1) + 2 * p.l2 * np.cos(x.theta2)) / (p.l + 2 * p.l2)
 
 
-def success(x, a, g, p):
-    up = (np.abs(wrap(x[:, 0] - g[:, 0])) < ANGLE_TOLERANCE) & (
-        np.abs(wrap(x[:, 1] - g[:, 1])) < ANGLE_TOLERANCE
+def rate(x, a, goal, p):
+    return -0.01 * (x.theta1_dot**2 + x.theta2_dot**2)
+
+
+def effort(x, a, goal, p):
+    return -0.001 * a.M2**2
+
+
+def success(x, a, goal, p):
+    up = (np.abs(wrap(x.theta1 - goal.theta1_star)) < ANGLE_TOLERANCE) & (
+        np.abs(wrap(x.theta2 - goal.theta2_star)) < ANGLE_TOLERANCE
     )
-    return up & (np.abs(x[:, 2]) < RATE_TOLERANCE) & (np.abs(x[:, 3]) < RATE_TOLERANCE)
+    return up & (np.abs(x.theta1_dot) < RATE_TOLERANCE) & (np.abs(x.theta2_dot) < RATE_TOLERANCE)
 
 
 def draw(surface, x, g, p, history):
@@ -139,11 +146,10 @@ TASK = Task(
         Value("theta1_dot", unit="rad/s"),
         Value("theta2_dot", unit="rad/s"),
     ),
-    reward=reward,
     terms=(
-        Term("height", -1.0, 1.0, "tip height over reach"),
-        Term("rate", -0.02 * RATE_LIMIT**2, 0.0, "-0.01 (theta1'^2 + theta2'^2)"),
-        Term("effort", -0.001, 0.0, "-0.001 action^2"),
+        Term("height", -1.0, 1.0, "tip height over reach", height),
+        Term("rate", -0.02 * RATE_LIMIT**2, 0.0, "-0.01 (theta1'^2 + theta2'^2)", rate),
+        Term("effort", -0.001, 0.0, "-0.001 action^2", effort),
     ),
     success=success,
     goal=(

@@ -108,18 +108,29 @@ RATE_TOLERANCE = 0.5
 """... and both rates below this (rad/s)."""
 
 
-def reward(x, a, g, p):
-    e1, e2 = wrap(x[:, 0] - g[:, 0]), wrap(x[:, 1] - g[:, 1])
-    squared = e1 * e1 + e2 * e2
-    rates = x[:, 2] * x[:, 2] + x[:, 3] * x[:, 3]
-    return -squared, -np.sqrt(squared), -0.01 * rates, -0.001 * (a[:, 0] ** 2 + a[:, 1] ** 2)
+def angle(x, a, goal, p):
+    e1, e2 = wrap(x.theta1 - goal.theta1_star), wrap(x.theta2 - goal.theta2_star)
+    return -(e1 * e1 + e2 * e2)
 
 
-def success(x, a, g, p):
-    near = (np.abs(wrap(x[:, 0] - g[:, 0])) < ANGLE_TOLERANCE) & (
-        np.abs(wrap(x[:, 1] - g[:, 1])) < ANGLE_TOLERANCE
+def precision(x, a, goal, p):
+    e1, e2 = wrap(x.theta1 - goal.theta1_star), wrap(x.theta2 - goal.theta2_star)
+    return -np.sqrt(e1 * e1 + e2 * e2)
+
+
+def rate(x, a, goal, p):
+    return -0.01 * (x.theta1_dot * x.theta1_dot + x.theta2_dot * x.theta2_dot)
+
+
+def effort(x, a, goal, p):
+    return -0.001 * (a.M1**2 + a.M2**2)
+
+
+def success(x, a, goal, p):
+    near = (np.abs(wrap(x.theta1 - goal.theta1_star)) < ANGLE_TOLERANCE) & (
+        np.abs(wrap(x.theta2 - goal.theta2_star)) < ANGLE_TOLERANCE
     )
-    return near & (np.abs(x[:, 2]) < RATE_TOLERANCE) & (np.abs(x[:, 3]) < RATE_TOLERANCE)
+    return near & (np.abs(x.theta1_dot) < RATE_TOLERANCE) & (np.abs(x.theta2_dot) < RATE_TOLERANCE)
 
 
 def holding_torques(p):
@@ -147,12 +158,11 @@ TASK = Task(
         AngleError("theta1", "theta1*"),
         AngleError("theta2", "theta2*"),
     ),
-    reward=reward,
     terms=(
-        Term("angle", -2 * np.pi**2, 0.0, "-(e1^2 + e2^2)"),
-        Term("precision", -np.sqrt(2) * np.pi, 0.0, "-sqrt(e1^2 + e2^2)"),
-        Term("rate", -0.02 * RATE_LIMIT**2, 0.0, "-0.01 (theta1'^2 + theta2'^2)"),
-        Term("effort", -0.002, 0.0, "-0.001 |action|^2"),
+        Term("angle", -2 * np.pi**2, 0.0, "-(e1^2 + e2^2)", angle),
+        Term("precision", -np.sqrt(2) * np.pi, 0.0, "-sqrt(e1^2 + e2^2)", precision),
+        Term("rate", -0.02 * RATE_LIMIT**2, 0.0, "-0.01 (theta1'^2 + theta2'^2)", rate),
+        Term("effort", -0.002, 0.0, "-0.001 |action|^2", effort),
     ),
     success=success,
     goal=(

@@ -103,19 +103,35 @@ SPEED_TOLERANCE = 0.05
 """... and |r'| below this (m/s)."""
 
 
-def reward(x, a, g, p):
-    e = (x[:, 0] - g[:, 0]) / (p.rod_length / 2)
-    phi = wrap(x[:, 1])
-    return np.ones_like(e), -e * e, -np.abs(e), -0.1 * phi * phi, -0.001 * a[:, 0] ** 2
+def alive(x, a, goal, p):
+    return np.ones_like(x.r)
 
 
-def success(x, a, g, p):
-    e = (x[:, 0] - g[:, 0]) / (p.rod_length / 2)
-    return (np.abs(e) < DISTANCE_TOLERANCE) & (np.abs(x[:, 2]) < SPEED_TOLERANCE)
+def distance(x, a, goal, p):
+    e = (x.r - goal.r_star) / (p.rod_length / 2)
+    return -e * e
 
 
-def failure(x, a, g, p):
-    return np.abs(x[:, 0]) > p.rod_length / 2
+def precision(x, a, goal, p):
+    return -np.abs((x.r - goal.r_star) / (p.rod_length / 2))
+
+
+def angle(x, a, goal, p):
+    phi = wrap(x.phi)
+    return -0.1 * phi * phi
+
+
+def effort(x, a, goal, p):
+    return -0.001 * a.tau**2
+
+
+def success(x, a, goal, p):
+    e = (x.r - goal.r_star) / (p.rod_length / 2)
+    return (np.abs(e) < DISTANCE_TOLERANCE) & (np.abs(x.r_dot) < SPEED_TOLERANCE)
+
+
+def failure(x, a, goal, p):
+    return np.abs(x.r) > p.rod_length / 2
 
 
 def start(rng, p):
@@ -152,13 +168,12 @@ TASK = Task(
         Value("phi_dot", unit="rad/s"),
         Value("r*"),
     ),
-    reward=reward,
     terms=(
-        Term("alive", 1.0, 1.0, "1 per step on the rod"),
-        Term("distance", -1.0, 0.0, "-((r - r*) / half-length)^2, at most 1"),
-        Term("precision", -1.0, 0.0, "-|r - r*| / half-length, at most 1"),
-        Term("angle", -0.1, 0.0, "-0.1 phi^2, at most 0.1"),
-        Term("effort", -0.001, 0.0, "-0.001 action^2"),
+        Term("alive", 1.0, 1.0, "1 per step on the rod", alive),
+        Term("distance", -1.0, 0.0, "-((r - r*) / half-length)^2, at most 1", distance),
+        Term("precision", -1.0, 0.0, "-|r - r*| / half-length, at most 1", precision),
+        Term("angle", -0.1, 0.0, "-0.1 phi^2, at most 0.1", angle),
+        Term("effort", -0.001, 0.0, "-0.001 action^2", effort),
     ),
     success=success,
     failure=failure,

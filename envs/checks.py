@@ -300,7 +300,7 @@ def _known(task_name: str, field: str, names, known, what: str) -> None:
 def check_with_model(plant) -> None:
     """What needs the compiled model: names, ranges inside limits, parameters shadowed,
     inputs without a force, the mass matrix at sample starts, the operating point."""
-    task, system, names = plant.task, plant.system, plant.state_names
+    task, names = plant.task, plant.state_names
     name = task.name
     hints = task.lqr
     _known(name, "lqr.states", hints.states or (), names, "state component")

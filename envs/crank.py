@@ -98,14 +98,22 @@ GRID = 720
 """Crank angles sampled to find the slider's travel and to bracket target angles."""
 
 
-def reward(x, a, g, p):
-    e = (x[:, 2] - g[:, 0]) / p.half_travel
-    return -e * e, -0.001 * x[:, 1] ** 2, -0.001 * a[:, 0] ** 2
+def distance(x, a, goal, p):
+    e = (x.slider_x - goal.x_star) / p.half_travel
+    return -e * e
 
 
-def success(x, a, g, p):
-    e = (x[:, 2] - g[:, 0]) / p.half_travel
-    return (np.abs(e) < 2 * POSITION_TOLERANCE) & (np.abs(x[:, 1]) < RATE_TOLERANCE)
+def rate(x, a, goal, p):
+    return -0.001 * x.theta_dot**2
+
+
+def effort(x, a, goal, p):
+    return -0.001 * a.tau**2
+
+
+def success(x, a, goal, p):
+    e = (x.slider_x - goal.x_star) / p.half_travel
+    return (np.abs(e) < 2 * POSITION_TOLERANCE) & (np.abs(x.theta_dot) < RATE_TOLERANCE)
 
 
 def slider(system, theta, rate=None):
@@ -154,12 +162,12 @@ def rest_at_target(g, x, system):
     return np.stack([theta, np.zeros_like(theta)], axis=1)
 
 
-def slider_x(x, a, g, p):
-    return x[:, 2]
+def slider_x(x, a, goal, p):
+    return x.slider_x
 
 
-def slider_v(x, a, g, p):
-    return x[:, 3]
+def slider_v(x, a, goal, p):
+    return x.slider_v
 
 
 def start(rng, p):
@@ -191,11 +199,10 @@ TASK = Task(
         Derived("slider_v", slider_v, slider_v_low, "slider_speed", "m/s"),
         Value("x*", bound="reach"),
     ),
-    reward=reward,
     terms=(
-        Term("distance", -4.0, 0.0, "-((x - x*) / (travel / 2))^2"),
-        Term("rate", -0.001 * RATE_LIMIT**2, 0.0, "-0.001 theta'^2"),
-        Term("effort", -0.001, 0.0, "-0.001 action^2"),
+        Term("distance", -4.0, 0.0, "-((x - x*) / (travel / 2))^2", distance),
+        Term("rate", -0.001 * RATE_LIMIT**2, 0.0, "-0.001 theta'^2", rate),
+        Term("effort", -0.001, 0.0, "-0.001 action^2", effort),
     ),
     success=success,
     goal=(Goal("x*", "m", "target_lo", "target_hi", doc="slider target"),),

@@ -130,29 +130,45 @@ SPEED_ERROR_BOUND = 3.0
 """Bound on the observed and rewarded speed error |v - v*| (m/s)."""
 
 
-def reward(x, a, g, p):
-    dv = np.abs(-p.r * x[:, 9] - g[:, 0])
-    dphi = np.abs(wrap(x[:, 3] - g[:, 1]))
-    lean = x[:, 2] - 0.5 * np.pi
-    effort = -0.001 * (a[:, 0] ** 2 + a[:, 1] ** 2)
-    alive = np.ones_like(lean)
-    track = 0.5 * (np.exp(-dv / TRACK_SCALE) + np.exp(-dphi / TRACK_SCALE))
-    return alive, -dv, -dphi, -lean * lean, effort, track
+def speed_error(x, a, goal, p):
+    """v - v* (m/s): the rolling speed -r psi' against the command; observed."""
+    return -p.r * x.psi_dot - goal.v_star
 
 
-def speed_error(x, a, g, p):
-    """v - v* (m/s), observed."""
-    return -p.r * x[:, 9] - g[:, 0]
+def alive(x, a, goal, p):
+    return np.ones_like(x.theta)
 
 
-def success(x, a, g, p):
-    speed_ok = np.abs(-p.r * x[:, 9] - g[:, 0]) < SPEED_TOLERANCE
-    heading_ok = np.abs(wrap(x[:, 3] - g[:, 1])) < HEADING_TOLERANCE
-    return speed_ok & heading_ok & (np.abs(x[:, 2] - 0.5 * np.pi) <= LEAN_LIMIT)
+def speed(x, a, goal, p):
+    return -np.abs(-p.r * x.psi_dot - goal.v_star)
 
 
-def failure(x, a, g, p):
-    return np.abs(x[:, 2] - 0.5 * np.pi) > LEAN_LIMIT
+def heading(x, a, goal, p):
+    return -np.abs(wrap(x.phi - goal.phi_star))
+
+
+def lean(x, a, goal, p):
+    tilt = x.theta - 0.5 * np.pi
+    return -tilt * tilt
+
+
+def effort(x, a, goal, p):
+    return -0.001 * (a.tau_drive**2 + a.tau_steer**2)
+
+
+def track(x, a, goal, p):
+    dv, dphi = np.abs(-p.r * x.psi_dot - goal.v_star), np.abs(wrap(x.phi - goal.phi_star))
+    return 0.5 * (np.exp(-dv / TRACK_SCALE) + np.exp(-dphi / TRACK_SCALE))
+
+
+def success(x, a, goal, p):
+    speed_ok = np.abs(-p.r * x.psi_dot - goal.v_star) < SPEED_TOLERANCE
+    heading_ok = np.abs(wrap(x.phi - goal.phi_star)) < HEADING_TOLERANCE
+    return speed_ok & heading_ok & (np.abs(x.theta - 0.5 * np.pi) <= LEAN_LIMIT)
+
+
+def failure(x, a, goal, p):
+    return np.abs(x.theta - 0.5 * np.pi) > LEAN_LIMIT
 
 
 def rolling_state(theta, phi, thetad, phid, speed, radius):
@@ -203,14 +219,13 @@ TASK = Task(
         AngleError("phi", "phi*"),
         Derived("v - v*", speed_error, -SPEED_ERROR_BOUND, SPEED_ERROR_BOUND, "m/s"),
     ),
-    reward=reward,
     terms=(
-        Term("alive", 1.0, 1.0, "1 per step"),
-        Term("speed", -SPEED_ERROR_BOUND, 0.0, "-|v - v*|, at most 3"),
-        Term("heading", -np.pi, 0.0, "-|phi - phi*|"),
-        Term("lean", -(LEAN_LIMIT**2), 0.0, "-(theta - pi/2)^2"),
-        Term("effort", -0.002, 0.0, "-0.001 |action|^2"),
-        Term("track", 0.0, 1.0, "(exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2"),
+        Term("alive", 1.0, 1.0, "1 per step", alive),
+        Term("speed", -SPEED_ERROR_BOUND, 0.0, "-|v - v*|, at most 3", speed),
+        Term("heading", -np.pi, 0.0, "-|phi - phi*|", heading),
+        Term("lean", -(LEAN_LIMIT**2), 0.0, "-(theta - pi/2)^2", lean),
+        Term("effort", -0.002, 0.0, "-0.001 |action|^2", effort),
+        Term("track", 0.0, 1.0, "(exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2", track),
     ),
     success=success,
     failure=failure,

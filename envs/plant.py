@@ -207,7 +207,7 @@ class Plant:
     def step(self, x, u, t=0.0) -> np.ndarray:
         """The state one control period after x under constant inputs u from time t, by the
         env's own integrator and substeps (batched over leading axes)."""
-        return self.system.step(t, x, u, self.control_period, self.substeps, method=self.integrator)
+        return self.system.step(x, u, self.control_period, self.substeps, t, method=self.integrator)
 
     def simulator(self, n: int):
         """A runtime of `n` rows of this plant: the env's own step, for agents that

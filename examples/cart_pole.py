@@ -21,27 +21,50 @@ def cart_pole() -> ModelSpec:
     return ModelSpec("cart_pole", (x, th), T, m * g * py, params, inputs=(F,), forces={x: F})
 
 
-def reward(x, a, g, p):
-    return np.cos(x[:, 1]), -0.1 * (x[:, 0] / 2.4) ** 2, -0.001 * a[:, 0] ** 2
+def upright(x, a, goal, p):
+    return np.cos(x.theta)
 
 
-def success(x, a, g, p):
-    return (np.abs(x[:, 1]) < 0.05) & (np.abs(x[:, 0]) < 0.1) & (np.abs(x[:, 3]) < 0.2)
+def centre(x, a, goal, p):
+    return -0.1 * (x.x / 2.4) ** 2
 
 
-def failure(x, a, g, p):
-    return (np.abs(x[:, 0]) > 2.4) | (np.abs(envs.wrap(x[:, 1])) > 0.5)
+def effort(x, a, goal, p):
+    return -0.001 * a.F**2
+
+
+def success(x, a, goal, p):
+    return (np.abs(x.theta) < 0.05) & (np.abs(x.x) < 0.1) & (np.abs(x.theta_dot) < 0.2)
+
+
+def failure(x, a, goal, p):
+    return (np.abs(x.x) > 2.4) | (np.abs(envs.wrap(x.theta)) > 0.5)
 
 
 TASK = envs.Task(
-    name="CartPole", model=cart_pole, actuated=("F",), max_input=(10.0,),
-    observation=(envs.Value("x", unit="m"), envs.Angle("theta"), envs.Value("x_dot", unit="m/s"),
-                 envs.Value("theta_dot", unit="rad/s")),
-    reward=reward, success=success, failure=failure,
-    terms=(envs.Term("upright", -1, 1), envs.Term("centre", -0.4, 0), envs.Term("effort", -0.001, 0)),
+    name="CartPole",
+    model=cart_pole,
+    actuated=("F",),
+    max_input=(10.0,),
+    observation=(
+        envs.Value("x", unit="m"),
+        envs.Angle("theta"),
+        envs.Value("x_dot", unit="m/s"),
+        envs.Value("theta_dot", unit="rad/s"),
+    ),
+    terms=(
+        envs.Term("upright", -1, 1, "cos theta", upright),
+        envs.Term("centre", -0.4, 0, "-0.1 (x / 2.4)^2", centre),
+        envs.Term("effort", -0.001, 0, "-0.001 action^2", effort),
+    ),
+    success=success,
+    failure=failure,
     start={"x": (-0.5, 0.5), "theta": (-0.1, 0.1), "x_dot": (-0.1, 0.1), "theta_dot": (-0.1, 0.1)},
-    limits={"x": 4.8, "x_dot": 10.0, "theta_dot": 20.0}, operating_point={},
-    control_period=0.02, substeps=4, max_episode_steps=500,
+    limits={"x": 4.8, "x_dot": 10.0, "theta_dot": 20.0},
+    operating_point={},
+    control_period=0.02,
+    substeps=4,
+    max_episode_steps=500,
     lqr=envs.LQRHints(region={"x": 0.5, "theta": 0.1, "x_dot": 0.1, "theta_dot": 0.1}),
 )
 envs.register("Examples/CartPole-v0", TASK)

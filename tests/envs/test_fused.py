@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import envs
+from tests.envs.test_runtime import former_form
 from envs import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
@@ -136,7 +137,7 @@ def _reaches_an_opaque_object(x, a, g, p):
 
 def test_a_function_reaching_an_opaque_object_has_no_fingerprint():
     assert fingerprint(_reaches_an_opaque_object) is None
-    assert fingerprint(arm.reward, arm.success) is not None
+    assert fingerprint(arm.angle, arm.success) is not None
 
 
 def _closure_reward(weight):
@@ -151,7 +152,7 @@ def test_closures_are_fingerprinted_by_their_cells():
     assert fingerprint(_closure_reward(1.0)) == fingerprint(_closure_reward(1.0))
     assert fingerprint(_closure_reward(1.0)) != fingerprint(_closure_reward(2.0))
     # and the runtime compiles each into its own fused step
-    task = envs.Task(**{**arm.TASK.__dict__, "reward": _closure_reward(3.0)})
+    task = former_form(arm.TASK, _closure_reward(3.0))
     env = envs.LagrangianEnv(task)
     env.reset(seed=0)
     _, r, *_ = env.step(np.zeros(2, np.float32))

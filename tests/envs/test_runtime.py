@@ -3,6 +3,8 @@ autoreset modes, ending early never paying, envs from any kind of model, bad dec
 
 from __future__ import annotations
 
+import dataclasses
+
 import warnings
 
 import gymnasium as gym
@@ -184,8 +186,23 @@ def _python_only_reward(x, a, g, p):
     return -_squared_error(x, g), np.zeros(len(x)), np.zeros(len(x)), np.zeros(len(x))
 
 
+def _arm_success(x, a, g, p):
+    near = (np.abs(dynamics.wrap(x[:, 0] - g[:, 0])) < 0.1) & (
+        np.abs(dynamics.wrap(x[:, 1] - g[:, 1])) < 0.1
+    )
+    return near & (np.abs(x[:, 2]) < 0.5) & (np.abs(x[:, 3]) < 0.5)
+
+
+def former_form(task, reward, success=_arm_success):
+    """`task` declared the former way: one reward(x, a, g, p) returning every term, and
+    functions reading columns by number (still accepted, with a DeprecationWarning)."""
+    terms = tuple(dataclasses.replace(t, fn=None) for t in task.terms)
+    with pytest.warns(DeprecationWarning, match="former form"):
+        return envs.Task(**{**task.__dict__, "reward": reward, "terms": terms, "success": success})
+
+
 def test_a_task_function_numba_cannot_type_runs_as_python_with_a_warning():
-    task = envs.Task(**{**arm.TASK.__dict__, "reward": _python_only_reward})
+    task = former_form(arm.TASK, _python_only_reward)
     with pytest.warns(RuntimeWarning, match="plain Python"):
         env = envs.LagrangianEnv(task)
     env.reset(seed=0)
