@@ -115,6 +115,18 @@ def design(lin: LinearModel, dt: float, Q, R, rtol: float = 1e-9) -> LQRDesign:
     return LQRDesign(lin, float(dt), Ad, Bd, _weights(Q, n, "Q"), _weights(R, m, "R"), K, P, c)
 
 
+def refuse_time_dependent(env, agent: str) -> None:
+    """ValueError when the env's dynamics depend on time explicitly: an agent designed on
+    the dynamics at one time (a linearisation, a plan from t = 0) would be silently wrong."""
+    if env.plant.time_dependent:
+        raise ValueError(
+            f"{agent} designs on the dynamics at one time, and task {env.task.name!r} is "
+            f"time-dependent ({env.system.name}'s accelerations change with t at fixed "
+            "state: a prescribed motion or drive), so its answer would be wrong; this agent "
+            "does not support time-dependent systems (train an RL agent on the env instead)."
+        )
+
+
 class LQRPolicy:
     """u = u0 - K (x - x0), K from the linearisation at the task's operating point.
 
@@ -135,6 +147,8 @@ class LQRPolicy:
         names = state_names(self.system)
         self.states = tuple(states) if states is not None else self.config.states or names
         _indices(names, self.states)  # validates the names
+        refuse_time_dependent(self.env, "LQR")
+        self.env.plant.require_observed("LQR", self.states)
         self.Q = Q if Q is not None else bryson_weights(self.config, self.states)
         n_a = self.env.action_space.shape[-1]
         self.R = R if R is not None else np.broadcast_to(self.config.R, (n_a,)).astype(float)
@@ -144,12 +158,13 @@ class LQRPolicy:
         self._designs: dict[bytes, LQRDesign] = {}
 
     def _action_matrix(self, n_a: int) -> np.ndarray:
-        """S (n_u, n_a) with u = S a: the env's action scaling, checked to be linear."""
+        """S (n_u, n_a) with u = u(0) + S a: the env's action scaling, checked to be affine
+        (asymmetric input limits shift u(0))."""
         zero = self.env.action_to_input(np.zeros(n_a))
         S = (self.env.action_to_input(np.eye(n_a)) - zero).T
         probe = np.linspace(-0.9, 0.7, n_a)
-        if np.abs(zero).max() > 0 or not np.allclose(S @ probe, self.env.action_to_input(probe)):
-            raise ValueError("LQRPolicy needs an action scaling u = S a (linear in the action).")
+        if not np.allclose(zero + S @ probe, self.env.action_to_input(probe)):
+            raise ValueError("LQRPolicy needs an action scaling u = u0 + S a (affine in a).")
         return S
 
     def design(self, x0=None, u0=None) -> LQRDesign:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .common import lagrange_env
-from .lqr import LQRPolicy
+from .lqr import LQRPolicy, refuse_time_dependent
 from .plan import Plan, PlanError, action_matrix, env_step, env_tableau, plan, step_jacobians
 
 __all__ = ["PlanPolicy", "Tracker", "tvlqr"]
@@ -104,6 +104,9 @@ class PlanPolicy:
     def __init__(self, env, replan: bool = False, **options):
         self.env = lagrange_env(env)
         self.system = self.env.system
+        refuse_time_dependent(self.env, "The plan tracker")
+        # it predicts each row's next state to tell a new episode from a tracked one
+        self.env.plant.require_observed("The plan tracker")
         self.lqr = LQRPolicy(env)
         self.replan = bool(replan)
         self.options = options

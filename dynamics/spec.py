@@ -76,6 +76,20 @@ class ModelSpec:
                     f"{self.name}: {label} is text {value!r}; give a sympy expression "
                     "(dynamics.parse.parse_expression reads text without running code)."
                 )
+        for q in (*self.coordinates, *self.prescribed):
+            if getattr(q, "args", None) != (t,):
+                raise ValueError(
+                    f"{self.name}: coordinate {q} is not a function of dynamics.spec.t "
+                    "(make coordinates with sympy.physics.mechanics.dynamicsymbols)."
+                )
+        for label, value in self._expressions():
+            foreign = [s for s in sp.sympify(value).free_symbols if s.name == t.name and s != t]
+            if foreign:
+                raise ValueError(
+                    f"{self.name}: {label} uses a time symbol {foreign[0]!r} with other "
+                    "assumptions than dynamics.spec.t, the time the derivation differentiates "
+                    "by; its terms would be constants. Use `from dynamics.spec import t`."
+                )
 
     def _expressions(self):
         yield "kinetic", self.kinetic

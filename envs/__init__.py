@@ -15,6 +15,8 @@ A new system is a `Task` (see `envs.task`) on any model, registered with one cal
 `gymnasium.register` (`register` below is that call, spelled out).
 """
 
+import warnings
+
 from gymnasium.envs.registration import registry
 
 from dynamics import wrap
@@ -26,11 +28,22 @@ from .vector import LagrangianVectorEnv
 
 def register(env_id: str, task: Task, **kwargs) -> None:
     """`gymnasium.register(env_id, ...)` for a task: the single and vector entry points,
-    the task, and its `max_episode_steps` (override with max_episode_steps=...)."""
+    the task, and its `max_episode_steps` (override with max_episode_steps=...).
+    Registering an id again with the same task does nothing; with another task it warns
+    and replaces it (as Gymnasium does): give a changed task a new version instead."""
     import gymnasium
 
     if env_id in registry:
-        return
+        old = registry[env_id].kwargs.get("task")
+        if old is task or old == task:
+            return
+        warnings.warn(
+            f"{env_id} is registered already with another task ({getattr(old, 'name', old)!r}"
+            f"); replacing it. If the task's rewards, termination or dynamics changed, "
+            "register it under a new version instead.",
+            UserWarning,
+            stacklevel=2,
+        )
     gymnasium.register(
         id=env_id,
         entry_point="envs:LagrangianEnv",

@@ -471,8 +471,9 @@ def _column(task_name: str, label: str, value, n: int, kind: str) -> np.ndarray:
 
 def trial_run(plant, functions) -> None:
     """Each task function once as plain numpy on sample rows (read-only inputs): shapes,
-    dtypes, term count, finiteness, booleans. `functions`: the runtime's positional
-    (x, a, g, p) forms, by role ('reward', 'success', 'failure', 'derived_k')."""
+    dtypes, term count, finiteness, booleans. `functions`: role -> (label, fn) with fn in
+    the runtime's positional (x, a, g, p) form; roles 'reward' (the former form) or
+    'term_k', 'success', 'failure', 'derived_k'."""
     name = plant.task.name
     rows, g = plant.sample_rows(8)
     n = len(rows)

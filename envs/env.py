@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -59,6 +60,8 @@ class LagrangianEnv(ContractMixin, gym.Env):
 
     # ---- Gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if self._horizon is None:  # the episode limit the early-end penalty counts
+            self._horizon = enclosing_time_limit(self)
         super().reset(seed=seed)
         x, g = self._rt.plant.start_rows([self.np_random], options, [0], None)
         self._rt.reset_rows([0], x, g)
@@ -79,7 +82,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
         if a.shape != self._action_shape:
             raise ValueError(f"Expected action of shape {self._action_shape}, got {a.shape}.")
         rt = self._rt
-        if self._horizon is None:  # the registry's limit: known once make has set the spec
+        if self._horizon is None:  # no TimeLimit around it: the task's own limit
             self._horizon = horizon(self, self.task)
         try:  # the runtime checks finiteness before it changes anything
             diverged = rt.step(a.reshape(1, -1), self._horizon)
@@ -130,6 +133,23 @@ class LagrangianEnv(ContractMixin, gym.Env):
         state = self.__dict__.copy()
         state["_viewer"] = None  # a pygame window does not travel
         return state
+
+
+def enclosing_time_limit(env: gym.Env, depth: int = 12) -> int | None:
+    """The limit of the TimeLimit wrapper whose reset or step is calling into `env` (the
+    one `gymnasium.make` put around it, with `make(id, max_episode_steps=N)` or the
+    registered limit), or None. Gymnasium tells a wrapped env nothing of its wrappers, and
+    `make_vec`'s native entry point takes no additional wrapper that could, so the calling
+    frames are asked, once per env."""
+    frame = sys._getframe(1)
+    for _ in range(depth):
+        frame = frame.f_back
+        if frame is None:
+            return None
+        caller = frame.f_locals.get("self")
+        if isinstance(caller, gym.wrappers.TimeLimit) and caller.unwrapped is env:
+            return int(caller._max_episode_steps)
+    return None
 
 
 def draw(env, surface, x, g, history) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import cache
+from functools import cache, cached_property
 from typing import Any
 
 import numpy as np
@@ -174,7 +174,7 @@ class Plant:
         """The lowest reward one step can pay (the sum of the terms' lower bounds)."""
         return float(self.term_low.sum())
 
-    @property
+    @cached_property
     def time_dependent(self) -> bool:
         """Whether the dynamics depend on time explicitly (a prescribed motion, a drive):
         the accelerations at sample states differ at other times."""

@@ -357,11 +357,7 @@ class Runtime:
             role: (label, names.caller(fn, *self._types) if named else fn)
             for role, (label, fn) in functions.items()
         }
-        trial = {r: v for r, v in positional.items() if not r.startswith("term_")}
-        if named:  # the terms together, as the reward of the former form returns them
-            terms = [fn for r, (_, fn) in positional.items() if r.startswith("term_")]
-            trial = {"reward": ("reward terms", lambda *args: [f(*args) for f in terms]), **trial}
-        checks.trial_run(lay, trial)
+        checks.trial_run(lay, positional)
 
         sample = (self._rows_x, self.A, self.G, lay.p)
         if named:
