@@ -32,7 +32,6 @@ from __future__ import annotations
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-
 from .common import UserError, lagrange_env
 from .lqr import LQRPolicy
 
@@ -118,7 +117,7 @@ class CaptureSet:
         sim = self._sims.get(m)
         if sim is None:
             env = self.env
-            sim = env.plant.simulator(m)
+            sim = env.simulator(m)
             self._sims[m] = sim
         sim.reset_rows(np.arange(m), x, g)
         ended = np.zeros(m, dtype=bool)

@@ -114,6 +114,11 @@ class ContractMixin:
         """Time since reset, s: float single, (N,) vector."""
         return float(self._rt.T[0]) if self._single else self._rt.T.copy()
 
+    def simulator(self, n: int) -> Runtime:
+        """A runtime of `n` rows of this env's plant (`reset_rows`, `step`): the env's own
+        step, integrator and task, for agents that simulate closed loops."""
+        return Runtime(self._rt.plant, n)
+
     def action_to_input(self, action) -> np.ndarray:
         """Model input vector u for `action` (clipped to [-1, 1]); batched over leading axes."""
         return self._rt.plant.action_to_input(action)

@@ -7,7 +7,8 @@ declaration against the model (`envs.checks`), and turns the observation feature
 table of column operations for the runtime's kernel. It is the one home of what the
 runtime and the agents need of a task: the parameter record, start sampling and reset-option
 checks, the inverse maps (observation -> state and goal), the operating state and input, the
-action scaling, and a simulator of the env's own step (`simulator`, `step`).
+action scaling, and the env's own step (`step`; a batched simulator of it is
+`env.simulator(n)`, a runtime of this plant).
 """
 
 from __future__ import annotations
@@ -208,13 +209,6 @@ class Plant:
         """The state one control period after x under constant inputs u from time t, by the
         env's own integrator and substeps (batched over leading axes)."""
         return self.system.step(x, u, self.control_period, self.substeps, t, method=self.integrator)
-
-    def simulator(self, n: int):
-        """A runtime of `n` rows of this plant: the env's own step, for agents that
-        simulate closed loops (see `envs.runtime.Runtime`)."""
-        from .runtime import Runtime
-
-        return Runtime(self, n)
 
     # ---- inverse maps --------------------------------------------------------------------
     def state_from_observation(self, obs: np.ndarray) -> np.ndarray:
