@@ -26,14 +26,11 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-import yaml
-
 from . import hparams
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
-    env_slug,
     fail,
     non_negative_int,
     positive_int,
@@ -43,6 +40,7 @@ from .common import (
     write_atomic,
 )
 from .evaluate import BASELINES, evaluate, heuristic_of
+from .hparams import ALGOS, load_hyperparams
 from .report import (
     Row,
     Training,
@@ -52,13 +50,8 @@ from .report import (
     training_lines,
     write_csv,
 )
-from .train import (
-    ALGORITHMS,
-    TrainingInterrupted,
-    latest_checkpoint,
-    load_hyperparams,
-    train,
-)
+from .rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .train import TrainingInterrupted, train
 
 TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
 
@@ -73,35 +66,6 @@ def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
     start = time.perf_counter()
     stats = evaluate(env_id, agent, episodes, seed)
     return stats, time.perf_counter() - start, warm
-
-
-def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int) -> Path:
-    """Each budget trains in a directory of its own, so asking for another budget starts a
-    fresh run and keeps the earlier one (asked for again, it is resumed or reused)."""
-    return out / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{budget}steps"
-
-
-def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
-    """UserError when `run_dir` holds a run trained with another budget or hyperparameters
-    than asked for now (--fresh retrains it)."""
-    config = run_dir / "config.yml"
-    if not config.exists() or not (run_dir / "checkpoints").is_dir():
-        return
-    earlier = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-    now = yaml.safe_load(yaml.safe_dump(hp))  # as config.yml stores it
-    then = earlier.get("hyperparams") or {}
-    differ = [
-        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} now"
-        for k in sorted(set(now) | set(then))
-        if then.get(k) != now.get(k)
-    ]
-    if earlier.get("n_timesteps") != budget:
-        differ.insert(0, f"budget: {earlier.get('n_timesteps')} in the run, {budget} now")
-    if differ:
-        raise UserError(
-            f"{run_dir} holds a run trained with other settings than asked for now "
-            f"({'; '.join(differ)}). Pass --fresh to retrain it, or --out DIR to keep it."
-        )
 
 
 def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams):
@@ -291,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--algo",
-        help=f"train this ({', '.join(ALGORITHMS)}) on every env "
+        help=f"train this ({', '.join(ALGOS)}) on every env "
         "(default: per env, the algorithm its task declares)",
     )
     parser.add_argument(
@@ -326,8 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.algo is not None and args.algo not in ALGORITHMS:
-        parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGORITHMS)}")
+    if args.algo is not None and args.algo not in ALGOS:
+        parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
         if args.hyperparams is not None:

@@ -105,17 +105,54 @@ class Plan:
         return len(self.actions)
 
 
+MAX_STEPS = 20_000
+"""The most control periods a plan may have (each holds a few (2n x 2n) matrices)."""
+
+
+def _option_rules() -> dict:
+    from .hparams import _int, _real
+
+    return {
+        "horizon": _real(0.0, 3600.0, open_low=True),
+        "action_bound": _real(0.0, 1.0, open_low=True),
+        "state_weight": _real(0.0, 1e9),
+        "terminal_weight": _real(0.0, 1e9, open_low=True),
+        "goal_tolerance": _real(0.0, 1e6, open_low=True),
+        "max_iterations": _int(1, 100_000),
+        "jacobian_substeps": _int(1, 100),
+    }
+
+
 def plan_options(env, **overrides) -> dict:
     """The planner's options: DEFAULTS, then the task's `hyperparams["plan"]`, then
-    `overrides` (None values ignored); unknown names raise ValueError."""
+    `overrides` (None values ignored), each checked; unknown names or bad values raise
+    ValueError (one line, naming the option and where it came from)."""
+    from .hparams import _Bad, short
+
     task = lagrange_env(env).task
     opts = dict(DEFAULTS)
-    for source in (task.hyperparams.get("plan", {}), overrides):
+    rules = _option_rules()
+    sources = {f"task {task.name!r} (hyperparams['plan'])": task.hyperparams.get("plan", {})}
+    sources["the planner's arguments"] = overrides
+    for where, source in sources.items():
         for k, v in source.items():
             if k not in DEFAULTS:
-                raise ValueError(f"Unknown planner option {k!r}; known: {', '.join(DEFAULTS)}.")
+                raise ValueError(
+                    f"Unknown planner option {k!r} in {where}; known: {', '.join(DEFAULTS)}."
+                )
             if v is not None:
-                opts[k] = v
+                try:
+                    opts[k] = rules[k](v)
+                except _Bad as exc:
+                    raise ValueError(
+                        f"Planner option {k} in {where} must be {exc}, got {short(v)}."
+                    ) from None
+    period = float(lagrange_env(env).control_period)
+    if opts["horizon"] / period > MAX_STEPS:
+        raise ValueError(
+            f"Planner option horizon {short(opts['horizon'])} s is more than {MAX_STEPS} "
+            f"control periods of {period:g} s."
+        )
     return opts
 
 

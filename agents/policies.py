@@ -277,7 +277,7 @@ class SB3Policy:
         import pickle
 
         import yaml
-        from stable_baselines3 import PPO, SAC, TD3
+        from .hparams import algorithms
 
         path = Path(path)
         if path.is_dir():
@@ -285,7 +285,7 @@ class SB3Policy:
         if not path.is_file():
             raise FileNotFoundError(f"No trained model at {path}.")
         config = path.parent / "config.yml"
-        algos = {"ppo": PPO, "sac": SAC, "td3": TD3}
+        algos = algorithms()
         order = list(algos)
         run = {}
         if config.exists():
