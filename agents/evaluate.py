@@ -124,7 +124,7 @@ def make_agent(name: str, env, seed: int = 0):
         return PlanPolicy(env)
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
-        policy = SB3Policy.load(path)
+        policy = SB3Policy.load(path, env)
         if policy.handover is None:
             return policy
         from .handover import HandOverPolicy, handover_options

@@ -145,13 +145,10 @@ def prepare_run_dir(
 
 
 def _check_same_run(run_dir: Path, env_id: str, algo: str) -> None:
-    config = run_dir / "config.yml"
-    if not config.exists():
-        return
-    earlier = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-    if (earlier.get("env_id"), earlier.get("algo")) != (env_id, algo):
+    earlier = read_config(run_dir)
+    if earlier and (earlier["env_id"], earlier["algo"]) != (env_id, algo):
         raise UserError(
-            f"{run_dir} holds a {earlier.get('algo')} run on {earlier.get('env_id')}, "
+            f"{run_dir} holds a {earlier['algo']} run on {earlier['env_id']}, "
             f"not {algo} on {env_id}; resume it with those, or choose another --run-dir."
         )
 
@@ -174,10 +171,9 @@ def companion(directory: Path, kind: str, steps: int) -> Path:
 def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
     """UserError when `run_dir` holds a run trained with another budget or hyperparameters
     than asked for now (--fresh retrains it)."""
-    config = run_dir / "config.yml"
-    if not config.exists() or not (run_dir / "checkpoints").is_dir():
+    if not (run_dir / "config.yml").exists() or not (run_dir / "checkpoints").is_dir():
         return
-    earlier = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+    earlier = read_config(run_dir)
     now = yaml.safe_load(yaml.safe_dump(hp))  # as config.yml stores it
     then = earlier.get("hyperparams") or {}
     differ = [
@@ -191,4 +187,46 @@ def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
         raise UserError(
             f"{run_dir} holds a run trained with other settings than asked for now "
             f"({'; '.join(differ)}). Pass --fresh to retrain it, or --out DIR to keep it."
+        )
+
+
+# ---- a saved run, read back ----------------------------------------------------------------
+def read_config(run_dir: Path) -> dict:
+    """A run's config.yml ({} when there is none), checked: a mapping whose env_id and algo
+    are strings; UserError of one line otherwise."""
+    from .hparams import ALGOS, read_yaml
+
+    path = run_dir / "config.yml"
+    if not path.exists():
+        return {}
+    config = read_yaml(path)
+    if not isinstance(config, dict):
+        raise UserError(f"{path} is not a run's config (expected a mapping of env_id, algo, ...).")
+    for key in ("env_id", "algo"):
+        if not isinstance(config.get(key), str):
+            raise UserError(f"{path}: {key} must be a string, got {config.get(key)!r:.60}.")
+    if config["algo"] not in ALGOS:
+        raise UserError(f"{path}: algo must be one of {', '.join(ALGOS)}, got {config['algo']!r:.60}.")
+    if not isinstance(config.get("hyperparams") or {}, dict):
+        raise UserError(f"{path}: hyperparams must be a mapping.")
+    return config
+
+
+def check_run_is_for(run_dir: Path, config: dict, env_id: str | None) -> None:
+    """UserError when the run in `run_dir` (its `config`) was trained on another env id or
+    version than `env_id`, which it would otherwise act in without a word whenever the
+    spaces happen to have the same shapes."""
+    trained = config.get("env_id")
+    if env_id is None or trained is None:
+        return
+    from .common import check_env_id
+
+    try:
+        trained_id = check_env_id(trained)
+    except UserError:
+        trained_id = trained
+    if trained_id != env_id:
+        raise UserError(
+            f"{run_dir} holds a model trained on {trained}, not on {env_id}; evaluate it on "
+            f"{trained} (or train one for {env_id})."
         )

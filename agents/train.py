@@ -267,7 +267,7 @@ def _build_or_load(
                 f"Checkpoint {path} has no normalisation statistics ({stats.name}); "
                 "it cannot be resumed (--overwrite starts afresh)."
             )
-        env = VecNormalize.load(str(stats), env.venv)
+        env = _loaded(stats, lambda: VecNormalize.load(str(stats), env.venv))
     buffer = companion(ckpt_dir, "replay_buffer", steps)
     off_policy = issubclass(cls, OffPolicyAlgorithm)
     if off_policy and not buffer.exists():
@@ -277,11 +277,22 @@ def _build_or_load(
                 "start from an empty one. Pass --allow-missing-buffer to accept that."
             )
         print(f"No replay buffer for {path.name}: resuming with an empty one.", file=sys.stderr)
-    model = cls.load(path, env=env, device="cpu")
+    model = _loaded(path, lambda: cls.load(path, env=env, device="cpu"))
     if off_policy and buffer.exists():
         load_replay_buffer(model, buffer)
     print(f"Resuming from {path} at {model.num_timesteps} timesteps.", file=sys.stderr)
     return model
+
+
+def _loaded(path: Path, load):
+    """`load()`, a damaged checkpoint file (truncated, foreign) a one-line UserError."""
+    try:
+        return load()
+    except Exception as exc:
+        raise UserError(
+            f"Checkpoint file {path} cannot be loaded ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())[:80]}); --overwrite starts afresh."
+        ) from None
 
 
 def save_final(model: BaseAlgorithm, run_dir: Path) -> Path:
