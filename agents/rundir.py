@@ -206,7 +206,8 @@ def read_config(run_dir: Path) -> dict:
         if not isinstance(config.get(key), str):
             raise UserError(f"{path}: {key} must be a string, got {config.get(key)!r:.60}.")
     if config["algo"] not in ALGOS:
-        raise UserError(f"{path}: algo must be one of {', '.join(ALGOS)}, got {config['algo']!r:.60}.")
+        known = ", ".join(ALGOS)
+        raise UserError(f"{path}: algo must be one of {known}, got {config['algo']!r:.60}.")
     if not isinstance(config.get("hyperparams") or {}, dict):
         raise UserError(f"{path}: hyperparams must be a mapping.")
     return config
