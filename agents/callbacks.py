@@ -1,6 +1,7 @@
-"""The training run's callbacks (SB3's, adapted): checkpoints written atomically on the
-run's own timestep schedule, evaluations on the same schedule across resumes, and a
-graceful stop on SIGINT/SIGTERM that every long phase (learning, evaluation) polls."""
+"""The training run's callbacks (SB3's, adapted) and checkpoints: checkpoints written
+atomically on the run's own timestep schedule and read back (`build_or_load`), evaluations
+on the same schedule across resumes, and a graceful stop on SIGINT/SIGTERM that every long
+phase (learning, evaluation) polls."""
 
 from __future__ import annotations
 
@@ -18,12 +19,14 @@ from stable_baselines3.common.callbacks import (
     CheckpointCallback,
     EvalCallback,
 )
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.save_util import save_to_pkl
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from .common import atomic_path
+from .common import UserError, atomic_path
 from .curves import CurveLogger
-from .rundir import CHECKPOINT_PREFIX
+from .hparams import algo_kwargs, algorithms
+from .rundir import CHECKPOINT_PREFIX, companion
 
 def _crossed(before: int, now: int, every: int) -> bool:
     """True when the timestep count passed a multiple of `every` going from before to now."""
@@ -250,3 +253,62 @@ class _StopFirst(CallbackList):
     def _on_step(self) -> bool:
         return all(callback.on_step() for callback in self.callbacks)
 
+
+# ---- the model: new, or read back from a checkpoint; saved -------------------------------
+def build_or_load(
+    algo, hp, env: VecEnv, seed, found, ckpt_dir: Path, verbose, allow_missing_buffer=False
+) -> BaseAlgorithm:
+    """A new model for `env`, or (`found`: (steps, path)) the checkpoint's, with its
+    normalisation statistics and replay buffer."""
+    cls = algorithms()[algo]
+    if found is None:
+        kwargs = algo_kwargs(algo, hp, int(np.prod(env.action_space.shape)))
+        return cls(
+            hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=verbose, **kwargs
+        )
+    steps, path = found
+    stats = companion(ckpt_dir, "vecnormalize", steps)
+    if isinstance(env, VecNormalize):
+        if not stats.exists():
+            raise UserError(
+                f"Checkpoint {path} has no normalisation statistics ({stats.name}); "
+                "it cannot be resumed (--overwrite starts afresh)."
+            )
+        env = _loaded(stats, lambda: VecNormalize.load(str(stats), env.venv))
+    buffer = companion(ckpt_dir, "replay_buffer", steps)
+    off_policy = issubclass(cls, OffPolicyAlgorithm)
+    if off_policy and not buffer.exists():
+        if not allow_missing_buffer:
+            raise UserError(
+                f"Checkpoint {path} has no replay buffer ({buffer.name}); resuming would "
+                "start from an empty one. Pass --allow-missing-buffer to accept that."
+            )
+        print(f"No replay buffer for {path.name}: resuming with an empty one.", file=sys.stderr)
+    model = _loaded(path, lambda: cls.load(path, env=env, device="cpu"))
+    if off_policy and buffer.exists():
+        load_replay_buffer(model, buffer)
+    print(f"Resuming from {path} at {model.num_timesteps} timesteps.", file=sys.stderr)
+    return model
+
+
+def _loaded(path: Path, load):
+    """`load()`, a damaged checkpoint file (truncated, foreign) a one-line UserError."""
+    try:
+        return load()
+    except Exception as exc:
+        raise UserError(
+            f"Checkpoint file {path} cannot be loaded ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())[:80]}); --overwrite starts afresh."
+        ) from None
+
+
+def save_final(model: BaseAlgorithm, run_dir: Path) -> Path:
+    """model.zip (and vecnormalize.pkl if the env is normalised), each written atomically."""
+    vecnorm = model.get_vec_normalize_env()
+    if vecnorm is not None:
+        with atomic_path(run_dir / "vecnormalize.pkl") as tmp:
+            vecnorm.save(tmp)
+    path = run_dir / "model.zip"
+    with atomic_path(path) as tmp:
+        model.save(tmp)
+    return path

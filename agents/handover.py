@@ -35,7 +35,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from envs.runtime import Runtime
 
 from .common import UserError, lagrange_env
-from .lqr import LQRPolicy
+from .lqr_policy import LQRPolicy
 
 HANDOVER_KEYS = ("level", "shaping", "verify", "verify_level")
 VERIFY_REACH = 20.0
@@ -55,7 +55,7 @@ def handover_options(raw) -> dict | None:
     try:
         return check_handover(raw)
     except ValueError as exc:
-        from .hparams import short
+        from .values import short
 
         raise UserError(f"handover must be {exc}, got {short(raw)}.") from None
 

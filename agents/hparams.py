@@ -19,14 +19,23 @@ from __future__ import annotations
 
 import difflib
 import inspect
-import math
-import reprlib
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from .common import UserError, task_of
+from .values import (
+    Bad,
+    choice,
+    either,
+    integer,
+    optional,
+    real,
+    schedule_of,
+    short,
+    true_or_false,
+)
 
 DIRECTORY = Path(__file__).parent / "hyperparams"
 MAX_FILE_BYTES = 1 << 20
@@ -41,9 +50,6 @@ MANAGED_KEYS = (
     "policy_kwargs",
     "handover",
 )
-_short = reprlib.Repr()
-_short.maxlevel, _short.maxstring, _short.maxother = 2, 40, 40
-_short.maxlist = _short.maxdict = _short.maxtuple = 4
 
 
 def algorithms() -> dict:
@@ -55,11 +61,6 @@ def algorithms() -> dict:
 
 ALGOS = ("ppo", "sac", "td3")
 """The names of `algorithms()` (without importing SB3)."""
-
-
-def short(value) -> str:
-    """`value`'s repr, cut to a few dozen characters (cheap on shared, aliased structures)."""
-    return _short.repr(value)
 
 
 # ---- reading files -----------------------------------------------------------------------
@@ -116,95 +117,16 @@ def _table(path: Path) -> dict:
     return table
 
 
-# ---- checking values ---------------------------------------------------------------------
-class _Bad(Exception):
-    """What a value should have been (the caller adds the file and the key)."""
-
-
-def _int(lo: int, hi: int):
-    def check(v):
-        if isinstance(v, float) and v.is_integer():
-            v = int(v)
-        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise _Bad(f"an integer in [{lo}, {hi}]")
-        return v
-
-    return check
-
-
-def _real(lo: float, hi: float, open_low: bool = False):
-    def check(v):
-        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        if not ok or not (lo < v if open_low else lo <= v) or v > hi:
-            raise _Bad(f"a number in {'(' if open_low else '['}{lo}, {hi}]")
-        return float(v)
-
-    return check
-
-
-def _schedule(number):
-    """A number, or "lin_X" (a linear decay from X) with X such a number."""
-
-    def check(v):
-        if isinstance(v, str) and v.startswith("lin_"):
-            try:
-                number(float(v[4:]))
-            except (ValueError, _Bad) as exc:
-                raise _Bad(f"'lin_X' with X {exc}") from None
-            return v
-        try:
-            return number(v)
-        except _Bad as exc:
-            raise _Bad(f"{exc} or 'lin_X'") from None
-
-    return check
-
-
-def _bool(v):
-    if not isinstance(v, bool):
-        raise _Bad("true or false")
-    return v
-
-
-def _optional(check):
-    def optional(v):
-        return None if v is None else check(v)
-
-    return optional
-
-
-def _either(*checks):
-    def check(v):
-        wants = []
-        for c in checks:
-            try:
-                return c(v)
-            except _Bad as exc:
-                wants.append(str(exc))
-        raise _Bad(" or ".join(wants))
-
-    return check
-
-
-def _choice(*names):
-    def check(v):
-        if v not in names:
-            raise _Bad(f"one of {', '.join(map(repr, names))}")
-        return v
-
-    return check
-
-
 def _layers(v):
     if not isinstance(v, list) or not 1 <= len(v) <= 16:
-        raise _Bad("a list of 1 to 16 layer widths")
-    return [_int(1, 4096)(n) for n in v]
+        raise Bad("a list of 1 to 16 layer widths")
+    return [integer(1, 4096)(n) for n in v]
 
 
 def _net_arch(v):
     if isinstance(v, dict):
         if not v or set(v) - {"pi", "vf", "qf"}:
-            raise _Bad("a list of layer widths, or a table of them under pi, vf or qf")
+            raise Bad("a list of layer widths, or a table of them under pi, vf or qf")
         return {k: _layers(w) for k, w in v.items()}
     return _layers(v)
 
@@ -212,35 +134,35 @@ def _net_arch(v):
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 _POLICY_KWARGS = {
     "net_arch": _net_arch,
-    "activation_fn": _choice(*ACTIVATIONS),
-    "log_std_init": _real(-20.0, 5.0),
-    "ortho_init": _bool,
-    "full_std": _bool,
-    "use_expln": _bool,
-    "squash_output": _bool,
-    "share_features_extractor": _bool,
-    "n_critics": _int(1, 16),
+    "activation_fn": choice(*ACTIVATIONS),
+    "log_std_init": real(-20.0, 5.0),
+    "ortho_init": true_or_false,
+    "full_std": true_or_false,
+    "use_expln": true_or_false,
+    "squash_output": true_or_false,
+    "share_features_extractor": true_or_false,
+    "n_critics": integer(1, 16),
 }
 _NORMALIZE = {
-    "norm_obs": _bool,
-    "norm_reward": _bool,
-    "clip_obs": _real(0.0, 1e6, open_low=True),
-    "clip_reward": _real(0.0, 1e6, open_low=True),
-    "gamma": _real(0.0, 1.0, open_low=True),
-    "epsilon": _real(0.0, 1.0, open_low=True),
+    "norm_obs": true_or_false,
+    "norm_reward": true_or_false,
+    "clip_obs": real(0.0, 1e6, open_low=True),
+    "clip_reward": real(0.0, 1e6, open_low=True),
+    "gamma": real(0.0, 1.0, open_low=True),
+    "epsilon": real(0.0, 1.0, open_low=True),
 }
 
 
 def _table_of(rules: dict):
     def check(v):
         if not isinstance(v, dict) or set(v) - set(rules):
-            raise _Bad(f"a table of {', '.join(rules)}")
+            raise Bad(f"a table of {', '.join(rules)}")
         out = {}
         for k, value in v.items():
             try:
                 out[k] = rules[k](value)
-            except _Bad as exc:
-                raise _Bad(f"{k} to be {exc}") from None
+            except Bad as exc:
+                raise Bad(f"{k} to be {exc}") from None
         return out
 
     return check
@@ -248,8 +170,8 @@ def _table_of(rules: dict):
 
 def _noise(v):
     if not isinstance(v, dict) or v.get("type") != "normal" or set(v) != {"type", "sigma"}:
-        raise _Bad("{type: normal, sigma: S}")
-    return {"type": "normal", "sigma": _real(0.0, 10.0, open_low=True)(v["sigma"])}
+        raise Bad("{type: normal, sigma: S}")
+    return {"type": "normal", "sigma": real(0.0, 10.0, open_low=True)(v["sigma"])}
 
 
 def _handover(v):
@@ -258,52 +180,52 @@ def _handover(v):
     try:
         return check_handover(v)
     except ValueError as exc:
-        raise _Bad(str(exc)) from None
+        raise Bad(str(exc)) from None
 
 
-_fraction = _real(0.0, 1.0)
+_fraction = real(0.0, 1.0)
 RULES = {
-    "n_timesteps": _int(1, 10**10),
-    "n_envs": _int(1, 1024),
-    "policy": _choice("MlpPolicy"),
-    "normalize": _either(_bool, _table_of(_NORMALIZE)),
-    "action_noise": _optional(_noise),
-    "policy_kwargs": _optional(_table_of(_POLICY_KWARGS)),
-    "handover": _optional(_handover),
-    "gamma": _real(0.0, 1.0, open_low=True),
+    "n_timesteps": integer(1, 10**10),
+    "n_envs": integer(1, 1024),
+    "policy": choice("MlpPolicy"),
+    "normalize": either(true_or_false, _table_of(_NORMALIZE)),
+    "action_noise": optional(_noise),
+    "policy_kwargs": optional(_table_of(_POLICY_KWARGS)),
+    "handover": optional(_handover),
+    "gamma": real(0.0, 1.0, open_low=True),
     "gae_lambda": _fraction,
-    "learning_rate": _schedule(_real(0.0, 1.0, open_low=True)),
-    "clip_range": _schedule(_real(0.0, 10.0, open_low=True)),
-    "clip_range_vf": _optional(_schedule(_real(0.0, 1e6, open_low=True))),
-    "n_steps": _int(1, 10**6),
-    "batch_size": _int(1, 10**6),
-    "n_epochs": _int(1, 1000),
-    "ent_coef": _either(_real(0.0, 10.0), _choice("auto")),
-    "vf_coef": _real(0.0, 100.0),
-    "max_grad_norm": _real(0.0, 1e6, open_low=True),
-    "use_sde": _bool,
-    "sde_sample_freq": _int(-1, 10**6),
-    "normalize_advantage": _bool,
-    "target_kl": _optional(_real(0.0, 100.0, open_low=True)),
-    "stats_window_size": _int(1, 10**6),
-    "buffer_size": _int(1, 10**8),
-    "learning_starts": _int(0, 10**9),
-    "tau": _real(0.0, 1.0, open_low=True),
-    "train_freq": _int(1, 10**6),
-    "gradient_steps": _int(-1, 10**6),
-    "policy_delay": _int(1, 1000),
-    "target_policy_noise": _real(0.0, 10.0),
-    "target_noise_clip": _real(0.0, 10.0),
-    "target_update_interval": _int(1, 10**6),
-    "optimize_memory_usage": _bool,
+    "learning_rate": schedule_of(real(0.0, 1.0, open_low=True)),
+    "clip_range": schedule_of(real(0.0, 10.0, open_low=True)),
+    "clip_range_vf": optional(schedule_of(real(0.0, 1e6, open_low=True))),
+    "n_steps": integer(1, 10**6),
+    "batch_size": integer(1, 10**6),
+    "n_epochs": integer(1, 1000),
+    "ent_coef": either(real(0.0, 10.0), choice("auto")),
+    "vf_coef": real(0.0, 100.0),
+    "max_grad_norm": real(0.0, 1e6, open_low=True),
+    "use_sde": true_or_false,
+    "sde_sample_freq": integer(-1, 10**6),
+    "normalize_advantage": true_or_false,
+    "target_kl": optional(real(0.0, 100.0, open_low=True)),
+    "stats_window_size": integer(1, 10**6),
+    "buffer_size": integer(1, 10**8),
+    "learning_starts": integer(0, 10**9),
+    "tau": real(0.0, 1.0, open_low=True),
+    "train_freq": integer(1, 10**6),
+    "gradient_steps": integer(-1, 10**6),
+    "policy_delay": integer(1, 1000),
+    "target_policy_noise": real(0.0, 10.0),
+    "target_noise_clip": real(0.0, 10.0),
+    "target_update_interval": integer(1, 10**6),
+    "optimize_memory_usage": true_or_false,
 }
 
 
 def _scalar(v):
     if v is not None and not isinstance(v, (bool, int, float, str)):
-        raise _Bad("a number, a string, true/false or null (no rule knows this key)")
+        raise Bad("a number, a string, true/false or null (no rule knows this key)")
     if isinstance(v, str) and len(v) > 200:
-        raise _Bad("a string of at most 200 characters")
+        raise Bad("a string of at most 200 characters")
     return v
 
 
@@ -317,7 +239,7 @@ def check_entries(entries: dict, where: str) -> dict:
             raise UserError(f"{where}: keys must be names, got {short(key)}.")
         try:
             out[key] = RULES.get(key, _scalar)(value)
-        except _Bad as exc:
+        except Bad as exc:
             raise UserError(f"{where}: {key} must be {exc}, got {short(value)}.") from None
     return out
 
@@ -381,7 +303,7 @@ def policy_kwargs(raw: dict | None) -> dict:
     kwargs = dict(raw or {})
     if "activation_fn" in kwargs:
         table = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}
-        kwargs["activation_fn"] = table[_choice(*ACTIVATIONS)(kwargs["activation_fn"])]
+        kwargs["activation_fn"] = table[choice(*ACTIVATIONS)(kwargs["activation_fn"])]
     return kwargs
 
 

@@ -163,7 +163,7 @@ class SwingUpPolicy(Policy):
         zeta: float = 0.8,
         capture_level: float = 500.0,
     ):
-        from .lqr import LQRPolicy
+        from .lqr_policy import LQRPolicy
 
         self.env = lagrange_env(env)
         super().__init__(_single_action_space(self.env))
@@ -340,7 +340,8 @@ def _check_spaces(path: Path, model, env) -> None:
     if model.observation_space.shape != obs.shape or model.action_space.shape != act.shape:
         raise UserError(
             f"{path} was trained on observations {model.observation_space.shape} and actions "
-            f"{model.action_space.shape}; the env has {obs.shape} and {act.shape}."
+            f"{model.action_space.shape}; the env has {obs.shape} and {act.shape}: it was "
+            "trained on another environment."
         )
 
 

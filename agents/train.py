@@ -26,12 +26,9 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
-from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from .callbacks import (
     AtomicCheckpoint,
@@ -39,12 +36,12 @@ from .callbacks import (
     GracefulStop,
     ScheduledEval,
     _StopFirst,
-    load_replay_buffer,
+    build_or_load,
+    save_final,
 )
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
-    atomic_path,
     check_env_id,
     non_negative_int,
     positive_int,
@@ -52,15 +49,15 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
-from .hparams import ALGOS, algo_kwargs, algorithms, load_hyperparams
+from .hparams import ALGOS, algorithms, load_hyperparams
 from .rundir import (
-    companion,
     default_run_dir,
     exclusive,
     prepare_run_dir,
     remove_stale_temporaries,
 )
 from .vecenv import VECTORIZATIONS, make_envs
+
 
 def __getattr__(name: str):
     """Names that moved out of this module (agents.hparams, agents.rundir,
@@ -182,7 +179,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
     train_env, eval_env = make_envs(env_id, hp, n_envs, seed, vectorization, eval_envs)
     stop = GracefulStop()
     try:
-        model = _build_or_load(
+        model = build_or_load(
             algo, hp, train_env, seed, found, ckpt_dir, o["verbose"], o["allow_missing_buffer"]
         )
         curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
@@ -248,63 +245,6 @@ def _learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progr
     finally:
         if bar is not None and hasattr(bar, "pbar"):
             bar.pbar.close()
-
-
-def _build_or_load(
-    algo, hp, env: VecEnv, seed, found, ckpt_dir: Path, verbose, allow_missing_buffer=False
-) -> BaseAlgorithm:
-    cls = algorithms()[algo]
-    if found is None:
-        kwargs = algo_kwargs(algo, hp, int(np.prod(env.action_space.shape)))
-        return cls(
-            hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=verbose, **kwargs
-        )
-    steps, path = found
-    stats = companion(ckpt_dir, "vecnormalize", steps)
-    if isinstance(env, VecNormalize):
-        if not stats.exists():
-            raise UserError(
-                f"Checkpoint {path} has no normalisation statistics ({stats.name}); "
-                "it cannot be resumed (--overwrite starts afresh)."
-            )
-        env = _loaded(stats, lambda: VecNormalize.load(str(stats), env.venv))
-    buffer = companion(ckpt_dir, "replay_buffer", steps)
-    off_policy = issubclass(cls, OffPolicyAlgorithm)
-    if off_policy and not buffer.exists():
-        if not allow_missing_buffer:
-            raise UserError(
-                f"Checkpoint {path} has no replay buffer ({buffer.name}); resuming would "
-                "start from an empty one. Pass --allow-missing-buffer to accept that."
-            )
-        print(f"No replay buffer for {path.name}: resuming with an empty one.", file=sys.stderr)
-    model = _loaded(path, lambda: cls.load(path, env=env, device="cpu"))
-    if off_policy and buffer.exists():
-        load_replay_buffer(model, buffer)
-    print(f"Resuming from {path} at {model.num_timesteps} timesteps.", file=sys.stderr)
-    return model
-
-
-def _loaded(path: Path, load):
-    """`load()`, a damaged checkpoint file (truncated, foreign) a one-line UserError."""
-    try:
-        return load()
-    except Exception as exc:
-        raise UserError(
-            f"Checkpoint file {path} cannot be loaded ({type(exc).__name__}: "
-            f"{' '.join(str(exc).split())[:80]}); --overwrite starts afresh."
-        ) from None
-
-
-def save_final(model: BaseAlgorithm, run_dir: Path) -> Path:
-    """model.zip (and vecnormalize.pkl if the env is normalised), each written atomically."""
-    vecnorm = model.get_vec_normalize_env()
-    if vecnorm is not None:
-        with atomic_path(run_dir / "vecnormalize.pkl") as tmp:
-            vecnorm.save(tmp)
-    path = run_dir / "model.zip"
-    with atomic_path(path) as tmp:
-        model.save(tmp)
-    return path
 
 
 # ---- command line ------------------------------------------------------------------------

@@ -25,7 +25,7 @@ def test_the_new_system_walkthrough_runs_as_written(tmp_path, monkeypatch, capsy
     obs, _ = env.reset(seed=0)
     assert obs.shape == (5,) and env.unwrapped.system.parameters["m_pole"] == 0.2
     assert "| 0 | F | 10 |" in module.TASK.describe()
-    from agents import lqr_cli
+    from agents import lqr
 
-    assert lqr_cli.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0
+    assert lqr.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0
     assert "LQR: success 10/10" in capsys.readouterr().out
