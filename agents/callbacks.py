@@ -9,6 +9,7 @@ import copy
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -183,6 +184,45 @@ class ScheduledEval(EvalCallback):
         if not _crossed(before, self.num_timesteps, self.every):
             return True
         return super()._on_step()
+
+
+class LogProgress(BaseCallback):
+    """Progress as one line every `every` seconds (and at the end), for output that is not
+    a terminal, where a progress bar shows nothing until the run ends."""
+
+    every = 30.0
+
+    def __init__(self, label: str, stream=None):
+        super().__init__()
+        self.label, self.stream = label, stream
+        self._start = self._next = 0.0
+        self._first = self._total = 0
+
+    def _on_training_start(self) -> None:
+        self._start = time.monotonic()
+        self._next = self._start + self.every
+        self._first = self.num_timesteps
+        self._total = int(self.locals["total_timesteps"])
+
+    def _on_step(self) -> bool:
+        if time.monotonic() >= self._next:
+            self._line()
+            self._next = time.monotonic() + self.every
+        return True
+
+    def _on_training_end(self) -> None:
+        self._line()
+
+    def _line(self) -> None:
+        now, done = time.monotonic(), self.num_timesteps
+        rate = (done - self._first) / max(now - self._start, 1e-9)
+        left = max(self._total - done, 0) / rate if rate > 0 else float("inf")
+        print(
+            f"  {self.label}: {done:,}/{self._total:,} steps ({done / self._total:.0%}), "
+            f"{rate:,.0f} steps/s, about {left / 60:.1f} min left",
+            file=self.stream or sys.stderr,
+            flush=True,
+        )
 
 
 class EvaluationStopped(Exception):

@@ -53,8 +53,10 @@ class EvalStats:
         return float(self.lengths.mean())
 
     def summary(self) -> str:
+        """One line; sd is the spread of the returns over the episodes (the standard
+        deviation), not an interval of the mean (`agents.report` gives those, 95 %)."""
         return (
-            f"return {self.mean_return:.1f} +- {self.std_return:.1f}, success "
+            f"return {self.mean_return:.1f} (sd {self.std_return:.1f}), success "
             f"{self.success_rate:.0%}, length {self.mean_length:.0f} "
             f"({len(self.returns)} episodes: "
             + ", ".join(f"{n} {name}" for name, n in self.endings().items() if n)

@@ -149,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Mean and std of the return, success rate and episode length of an agent.",
     )
     parser.add_argument(
-        "env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v1, or module:NS/Env-v0"
+        "env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v2, or module:NS/Env-v0"
     )
     parser.add_argument(
         "--agent",

@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale)
         print(
             f"{name:>11}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}), "
-            f"return {r.returns.mean():.2f} +- {r.returns.std():.2f}"
+            f"return {r.returns.mean():.2f} (sd {r.returns.std():.2f})"
         )
     if args.measure_region:
         s, r = largest_region(env_id, lqr_policy, episodes=args.episodes, seed=args.seed)

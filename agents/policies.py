@@ -146,8 +146,8 @@ class SwingUpPolicy(Policy):
     - balance: LQR once its cost-to-go dx' P dx is below `capture_level` (the level set
       from which LQR succeeds in 99 % of 200 random directions for the default acrobot;
       the task's LQR region is far smaller because the basin is a thin slab, see agents.lqr).
-    Measured on Lagrange/Acrobot-v0 (3 N*m), 50 episodes: success 20 % (seeds 0-49) and
-    16 % (seeds 1000-1049); the energy-only pump it replaces captured none. The other
+    Measured on the 3 N*m acrobot (Lagrange/Acrobot-v1), 50 episodes: success 20 % (seeds
+    0-49) and 16 % (seeds 1000-1049); the energy-only pump it replaces captured none. The other
     episodes keep swinging at about E* without passing through the hand-over set."""
 
     def __init__(

@@ -34,6 +34,7 @@ from .callbacks import (
     AtomicCheckpoint,
     EvaluationStopped,
     GracefulStop,
+    LogProgress,
     ScheduledEval,
     _StopFirst,
     build_or_load,
@@ -201,7 +202,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         with stop:  # from here to the last save a signal stops and saves instead of killing
             if learning:
                 callbacks = [stop, curves, evaluation, checkpoint]
-                _learn(model, total, callbacks, fresh=found is None, progress=o["progress"])
+                label = f"{algo.upper()} on {env_id}" if o["progress"] else ""
+                _learn(model, total, callbacks, fresh=found is None, progress=label)
             if stop.signum is not None:  # keep what the weights have learnt from, no more
                 model.num_timesteps = stop.consistent_timesteps
                 curves.truncate(model.num_timesteps)
@@ -230,10 +232,14 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
     return result
 
 
-def _learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progress: bool):
+def _learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progress: str):
     # our own progress bar, so that it is closed (and its refresh thread stopped) however
-    # learn() ends; SB3's (progress_bar=True) is closed only when training ends normally
-    bar = ProgressBarCallback() if progress else None
+    # learn() ends; SB3's (progress_bar=True) is closed only when training ends normally.
+    # Where stderr is not a terminal (a log file), a line every LogProgress.every seconds
+    # (`progress` is the lines' label; empty: no progress shown).
+    bar = None
+    if progress:
+        bar = ProgressBarCallback() if sys.stderr.isatty() else LogProgress(progress)
     try:
         model.learn(
             total - model.num_timesteps,
@@ -256,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
         "model, normalisation statistics and learning curves (CSV and PNG). Ctrl-C saves "
         "the model and a checkpoint, then exits with status 130; --resume continues.",
     )
-    parser.add_argument("env_id", help="Gymnasium id, e.g. Lagrange/TwoLinkArm-v0")
+    parser.add_argument("env_id", help="Gymnasium id, e.g. Lagrange/BeadOnRod-v1")
     parser.add_argument("--algo", default="ppo", help=f"one of {', '.join(ALGOS)}")
     parser.add_argument("--timesteps", type=positive_int, help="budget (default: YAML n_timesteps)")
     parser.add_argument("--seed", type=non_negative_int, default=0)
@@ -353,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     evaluation = (
         "no evaluation"
         if result.eval_mean is None
-        else f"last evaluation {result.eval_mean:.1f} +- {result.eval_std:.1f}{rate}"
+        else f"last evaluation {result.eval_mean:.1f} (sd {result.eval_std:.1f}){rate}"
     )
     print(
         f"{args.algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "

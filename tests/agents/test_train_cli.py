@@ -86,3 +86,14 @@ def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
     assert result.model.n_steps == 128 and result.model.gamma == 0.9
     config = yaml.safe_load((run / "config.yml").read_text())
     assert config["hyperparams_file"] == str(path) and config["hyperparams"]["n_steps"] == 128
+
+
+def test_progress_shows_in_logs_as_periodic_lines(tmp_path, capsys, monkeypatch):
+    """Where stderr is not a terminal (a log file: here, pytest's capture), training prints
+    a line every LogProgress.every seconds instead of a progress bar."""
+    from agents.callbacks import LogProgress
+
+    monkeypatch.setattr(LogProgress, "every", 0.0)
+    train(BEAD, "ppo", 512, n_envs=1, run_dir=tmp_path, progress=True)
+    lines = [line for line in capsys.readouterr().err.splitlines() if "steps/s" in line]
+    assert len(lines) >= 2 and "PPO on Lagrange/BeadOnRod-v1: 512/512 steps (100%)" in lines[-1]
