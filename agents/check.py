@@ -351,6 +351,12 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return stopped.exit_code
+    except KeyboardInterrupt:  # Ctrl-C outside training: finished runs are on disk
+        print(
+            "Interrupted; the runs trained so far are kept (the same command reuses them).",
+            file=sys.stderr,
+        )
+        return 130
     return 0
 
 

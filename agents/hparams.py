@@ -178,9 +178,10 @@ def _handover(v):
     from .handover import check_handover
 
     try:
-        return check_handover(v)
+        check_handover(v)
     except ValueError as exc:
         raise Bad(str(exc)) from None
+    return v  # as written (config.yml records it so; agents.handover fills the defaults)
 
 
 _fraction = real(0.0, 1.0)
