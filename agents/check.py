@@ -21,12 +21,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-
-import yaml
 
 from . import hparams
 from .common import (
@@ -43,6 +42,7 @@ from .common import (
     write_atomic,
 )
 from .evaluate import BASELINES, evaluate, heuristic_of
+from .hparams import ALGOS, load_hyperparams
 from .report import (
     Row,
     Training,
@@ -52,13 +52,8 @@ from .report import (
     training_lines,
     write_csv,
 )
-from .train import (
-    ALGORITHMS,
-    TrainingInterrupted,
-    latest_checkpoint,
-    load_hyperparams,
-    train,
-)
+from .rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .train import TrainingInterrupted, train
 
 TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
 
@@ -73,35 +68,6 @@ def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
     start = time.perf_counter()
     stats = evaluate(env_id, agent, episodes, seed)
     return stats, time.perf_counter() - start, warm
-
-
-def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int) -> Path:
-    """Each budget trains in a directory of its own, so asking for another budget starts a
-    fresh run and keeps the earlier one (asked for again, it is resumed or reused)."""
-    return out / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{budget}steps"
-
-
-def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
-    """UserError when `run_dir` holds a run trained with another budget or hyperparameters
-    than asked for now (--fresh retrains it)."""
-    config = run_dir / "config.yml"
-    if not config.exists() or not (run_dir / "checkpoints").is_dir():
-        return
-    earlier = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-    now = yaml.safe_load(yaml.safe_dump(hp))  # as config.yml stores it
-    then = earlier.get("hyperparams") or {}
-    differ = [
-        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} now"
-        for k in sorted(set(now) | set(then))
-        if then.get(k) != now.get(k)
-    ]
-    if earlier.get("n_timesteps") != budget:
-        differ.insert(0, f"budget: {earlier.get('n_timesteps')} in the run, {budget} now")
-    if differ:
-        raise UserError(
-            f"{run_dir} holds a run trained with other settings than asked for now "
-            f"({'; '.join(differ)}). Pass --fresh to retrain it, or --out DIR to keep it."
-        )
 
 
 def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams):
@@ -153,8 +119,10 @@ def check_env(
     progress: bool,
     log=print,
     hyperparams: str | Path | None = None,
+    report: Path | None = None,
 ) -> list[Row]:
-    """Every baseline, LQR and the trained agent on one environment."""
+    """Every baseline, LQR and the trained agent on one environment (the run directory
+    named in the rows relative to `report`, the report's directory; default `out`)."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
@@ -172,7 +140,8 @@ def check_env(
     result, training = train_timed(
         env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams
     )
-    training = replace(training, run_dir=run_dir.relative_to(out).as_posix())
+    link = Path(os.path.relpath(run_dir, report or out)).as_posix()
+    training = replace(training, run_dir=link)
     stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
     rows.append(Row(env_id, algo, stats, eval_s, "", training, warm_s))
     log(
@@ -234,6 +203,16 @@ def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str
     )
 
 
+def report_dir(out: Path, env_ids: list[str] | None) -> Path:
+    """Where an invocation's report goes: `out` itself for the default set (every built-in
+    env), else a directory of its own under `out` named by the env ids, so that checking
+    systems one by one never overwrites another invocation's report. The trained runs are
+    shared (out/train), so each is trained once whichever report uses it."""
+    if not env_ids:
+        return out
+    return out / "+".join(env_slug(e) for e in env_ids)
+
+
 def run_check(
     env_ids: list[str] | None = None,
     algo: str | None = None,
@@ -245,32 +224,42 @@ def run_check(
     progress: bool = True,
     hyperparams: str | Path | None = None,
 ) -> list[Row]:
-    """Check every environment (default: all of `envs.ENV_IDS`); write the report to `out`.
-    algo: the algorithm to train everywhere (default: per env, the task's `algo`)."""
-    env_ids = list(env_ids) if env_ids else list(register_envs())
+    """Check every environment (default: all of `envs.ENV_IDS`); write the report to
+    `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
+    the task's `algo`)."""
+    given = list(env_ids or [])
+    env_ids = given or list(register_envs())
     if not env_ids:
         raise ValueError("No environments to check: the `envs` package registers none.")
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
+    report = report_dir(out, [check_env_id(e) for e in given])
     if not fresh:
         check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams)
     set_torch_threads(DEFAULT_TORCH_THREADS)
+    print(
+        f"The report goes to {report}/ (trained runs: {out / 'train'}/). In the lines below, "
+        "sd is the standard deviation of the return over the episodes; the report's "
+        "intervals are 95 % confidence intervals of the mean return and the success rate.",
+        file=sys.stderr,
+    )
     start = time.perf_counter()
     rows: list[Row] = []
     for i, env_id in enumerate(env_ids, 1):
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
-            env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams
-        )
+            env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
+            report,
+        )  # fmt: skip
     total = time.perf_counter() - start
-    write_atomic(out / "results.md", report_text(rows, episodes, seed, total))
-    write_csv(rows, out / "results.csv")
-    plot_comparison(rows, out / "comparison.png")
+    write_atomic(report / "results.md", report_text(rows, episodes, seed, total))
+    write_csv(rows, report / "results.csv")
+    plot_comparison(rows, report / "comparison.png")
     print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")
     print(markdown_table(rows) + "\n")
     print("\n".join(f"- {line}" for line in findings(rows)))
-    print(f"\nTotal wall time {total:.0f} s. Report, CSV and plots in {out}/")
+    print(f"\nTotal wall time {total:.0f} s. Report, CSV and plot in {report}/")
     return rows
 
 
@@ -291,7 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--algo",
-        help=f"train this ({', '.join(ALGORITHMS)}) on every env "
+        help=f"train this ({', '.join(ALGOS)}) on every env "
         "(default: per env, the algorithm its task declares)",
     )
     parser.add_argument(
@@ -309,7 +298,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="training budget per env (default: the YAML's n_timesteps); see --fresh for "
         "what a budget other than a run on disk does",
     )
-    parser.add_argument("--out", default="runs/check", help="output directory")
+    parser.add_argument(
+        "--out",
+        default="runs/check",
+        help="output directory: trained runs in OUT/train; the report in OUT for the default "
+        "set of envs, in OUT/ENV (ids joined by '+') for the envs given",
+    )
     parser.add_argument(
         "--fresh",
         action="store_true",
@@ -326,8 +320,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.algo is not None and args.algo not in ALGORITHMS:
-        parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGORITHMS)}")
+    if args.algo is not None and args.algo not in ALGOS:
+        parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
         if args.hyperparams is not None:
@@ -357,6 +351,12 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return stopped.exit_code
+    except KeyboardInterrupt:  # Ctrl-C outside training: finished runs are on disk
+        print(
+            "Interrupted; the runs trained so far are kept (the same command reuses them).",
+            file=sys.stderr,
+        )
+        return 130
     return 0
 
 

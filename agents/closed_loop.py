@@ -9,8 +9,9 @@ import gymnasium as gym
 import numpy as np
 
 from .common import lagrange_env
+from .episodes import run_episodes
 from .linear import _indices, state_names
-from .lqr import LQRPolicy, start_region
+from .lqr_policy import LQRPolicy, start_region
 
 
 @dataclass(frozen=True)
@@ -73,17 +74,8 @@ def evaluate_near(
             policy = LQRPolicy(vec)
         elif isinstance(policy, type) or not hasattr(policy, "predict"):
             policy = policy(vec)
-        returns = np.zeros(episodes)
-        success = np.zeros(episodes, dtype=bool)
-        running = np.ones(episodes, dtype=bool)
-        while running.any():
-            action, _ = policy.predict(obs, deterministic=True)
-            obs, reward, terminated, truncated, info = vec.step(action)
-            returns += np.where(running, reward, 0.0)
-            done = running & (terminated | truncated)
-            success[done] = info["is_success"][done]
-            running &= ~done
-        return ClosedLoop(returns, success, region)
+        stats = run_episodes(vec, policy, obs)
+        return ClosedLoop(stats.returns, stats.successes, region)
     finally:
         vec.close()
 

@@ -144,5 +144,5 @@ def non_negative_int(text: str) -> int:
 
 
 def env_slug(env_id: str) -> str:
-    """A file-system name for an environment id ('Lagrange/Acrobot-v0' -> 'Lagrange-Acrobot-v0')."""
+    """A file-system name for an environment id ('Lagrange/Acrobot-v2' -> 'Lagrange-Acrobot-v2')."""
     return env_id.replace("/", "-").replace(":", "-")

@@ -126,7 +126,8 @@ class _AfterEval(BaseCallback):
 
 
 def plot_curves(episodes: list[dict], evals: list[dict], path: Path, title: str) -> None:
-    """Training returns (per episode and a moving mean) and evaluation mean +- std."""
+    """Training returns (per episode and a moving mean) and evaluation mean +- sd (the
+    spread of the evaluation episodes' returns), every element in the legend."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -138,13 +139,15 @@ def plot_curves(episodes: list[dict], evals: list[dict], path: Path, title: str)
         r = np.array([float(r["return"]) for r in episodes])
         ax.plot(t, r, ".", ms=2, alpha=0.3, color="tab:blue", label="training episode")
         k = max(1, min(20, len(r) // 5))
-        ax.plot(t[k - 1 :], np.convolve(r, np.ones(k) / k, "valid"), color="tab:blue")
+        mean = np.convolve(r, np.ones(k) / k, "valid")
+        ax.plot(t[k - 1 :], mean, color="tab:blue", label=f"training, mean of {k} episodes")
     if evals:
         t = np.array([int(r["timesteps"]) for r in evals])
         m = np.array([float(r["mean_return"]) for r in evals])
         s = np.array([float(r["std_return"]) for r in evals])
         ax.plot(t, m, "o-", color="tab:orange", label="evaluation (deterministic)")
-        ax.fill_between(t, m - s, m + s, color="tab:orange", alpha=0.2)
+        band = "evaluation mean +- sd"
+        ax.fill_between(t, m - s, m + s, color="tab:orange", alpha=0.2, label=band)
     ax.set(xlabel="environment steps", ylabel="episode return", title=title)
     ax.grid(alpha=0.3)
     if episodes or evals:

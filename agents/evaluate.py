@@ -11,11 +11,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import gymnasium as gym
-import numpy as np
 
 from .common import (
     DEFAULT_TORCH_THREADS,
@@ -27,6 +25,7 @@ from .common import (
     positive_int,
     task_of,
 )
+from .episodes import ENDINGS, EvalStats, run_episodes  # noqa: F401  (ENDINGS: as before)
 from .policies import RandomPolicy, SB3Policy, ZeroPolicy
 
 BASELINES = ("random", "zero", "heuristic", "lqr", "plan")
@@ -50,61 +49,6 @@ def build_heuristic(env):
     return cls(env, **dict(task.heuristic.kwargs))
 
 
-ENDINGS = ("success", "failure", "diverged", "time limit")
-
-
-@dataclass(frozen=True)
-class EvalStats:
-    """Per-episode returns, lengths, success (the task's criterion at the last step) and how
-    each episode ended: `terminated` (the task's failure or divergence, before the time
-    limit) and, of those, `diverged` (`info["diverged"]`); neither means the time limit
-    truncated it. Missing ending arrays read as all truncated."""
-
-    returns: np.ndarray
-    lengths: np.ndarray
-    successes: np.ndarray
-    terminated: np.ndarray | None = None
-    diverged: np.ndarray | None = None
-
-    def endings(self) -> dict[str, int]:
-        """Episodes per way of ending (`ENDINGS`), each episode counted once: success, else
-        diverged, else failure (terminated by the task), else time limit (truncated)."""
-        none = np.zeros(len(self.returns), dtype=bool)
-        success = np.asarray(self.successes, dtype=bool)
-        terminated = none if self.terminated is None else np.asarray(self.terminated, bool)
-        diverged = none if self.diverged is None else np.asarray(self.diverged, bool)
-        diverged = diverged & ~success
-        failure = terminated & ~diverged & ~success
-        time_limit = ~(success | diverged | failure)
-        counts = (success, failure, diverged, time_limit)
-        return {name: int(c.sum()) for name, c in zip(ENDINGS, counts)}
-
-    @property
-    def mean_return(self) -> float:
-        return float(self.returns.mean())
-
-    @property
-    def std_return(self) -> float:
-        return float(self.returns.std())
-
-    @property
-    def success_rate(self) -> float:
-        return float(self.successes.mean())
-
-    @property
-    def mean_length(self) -> float:
-        return float(self.lengths.mean())
-
-    def summary(self) -> str:
-        return (
-            f"return {self.mean_return:.1f} +- {self.std_return:.1f}, success "
-            f"{self.success_rate:.0%}, length {self.mean_length:.0f} "
-            f"({len(self.returns)} episodes: "
-            + ", ".join(f"{n} {name}" for name, n in self.endings().items() if n)
-            + ")"
-        )
-
-
 def make_agent(name: str, env, seed: int = 0):
     """A policy with SB3's predict for `env` (a Lagrange env, single or vector)."""
     space = getattr(env, "single_action_space", env.action_space)
@@ -115,7 +59,7 @@ def make_agent(name: str, env, seed: int = 0):
     if name == "heuristic":
         return build_heuristic(env)
     if name == "lqr":
-        from .lqr import LQRPolicy
+        from .lqr_policy import LQRPolicy
 
         return LQRPolicy(env)
     if name == "plan":  # trajectory optimisation + time-varying LQR + LQR
@@ -124,7 +68,7 @@ def make_agent(name: str, env, seed: int = 0):
         return PlanPolicy(env)
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
-        policy = SB3Policy.load(path)
+        policy = SB3Policy.load(path, env)
         if policy.handover is None:
             return policy
         from .handover import HandOverPolicy, handover_options
@@ -178,23 +122,9 @@ def check_policy_fits(policy, venv) -> None:
 
 
 def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
-    """The first episode of every copy (the vector env autoresets the next step)."""
-    n = venv.num_envs
+    """The first episode of every copy, copy i reset with seed + i."""
     obs, _ = venv.reset(seed=seed)
-    returns, lengths = np.zeros(n), np.zeros(n, dtype=np.int64)
-    successes, ended_early, diverged = (np.zeros(n, dtype=bool) for _ in range(3))
-    running = np.ones(n, dtype=bool)
-    while running.any():
-        action, _ = policy.predict(obs, deterministic=deterministic)
-        obs, reward, terminated, truncated, info = venv.step(action)
-        returns[running] += reward[running]
-        lengths[running] += 1
-        done = running & (terminated | truncated)
-        successes[done] = np.asarray(info["is_success"])[done]
-        ended_early[done] = np.asarray(terminated)[done]
-        diverged[done] = np.asarray(info.get("diverged", np.zeros(n, bool)))[done]
-        running &= ~done
-    return EvalStats(returns, lengths, successes, ended_early, diverged & ended_early)
+    return run_episodes(venv, policy, obs, deterministic)
 
 
 def record_video(env_id: str, policy, video_dir, seed: int = 0, deterministic=True) -> Path:
@@ -219,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Mean and std of the return, success rate and episode length of an agent.",
     )
     parser.add_argument(
-        "env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v1, or module:NS/Env-v0"
+        "env_id", help="Gymnasium id, e.g. Lagrange/Acrobot-v2, or module:NS/Env-v0"
     )
     parser.add_argument(
         "--agent",

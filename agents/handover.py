@@ -33,7 +33,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from .common import UserError, lagrange_env
-from .lqr import LQRPolicy
+from .lqr_policy import LQRPolicy
 
 HANDOVER_KEYS = ("level", "shaping", "verify", "verify_level")
 VERIFY_REACH = 20.0
@@ -41,29 +41,47 @@ VERIFY_REACH = 20.0
 set when it misses it (see the module docstring)."""
 
 
+VERIFY_MAX = 60.0
+"""The longest `verify` simulation, seconds: each check simulates LQR that long for every
+row near the set, inside the env's step (the acrobot uses 3 s)."""
+
+
 def handover_options(raw) -> dict | None:
     """The checked `handover` entry of a hyperparameter table (None when absent)."""
     if raw is None:
         return None
-    if not isinstance(raw, dict) or set(raw) - set(HANDOVER_KEYS) or "level" not in raw:
-        raise UserError(
-            f"handover must be a table with 'level' (and optionally {', '.join(HANDOVER_KEYS[1:])}"
-            f"), got {raw!r}."
-        )
     try:
-        level = float(raw["level"])
-        out = {"level": level, "verify_level": VERIFY_REACH * level}
-        out.update({k: float(v) for k, v in raw.items()})
-    except (TypeError, ValueError):
-        raise UserError(f"handover entries must be numbers, got {raw!r}.") from None
-    for k in HANDOVER_KEYS[1:]:
-        out.setdefault(k, 0.0)
-    if not all(np.isfinite(v) and v >= 0 for v in out.values()) or not (
-        out["level"] > 0 and out["verify_level"] >= out["level"]
+        return check_handover(raw)
+    except ValueError as exc:
+        from .values import short
+
+        raise UserError(f"handover must be {exc}, got {short(raw)}.") from None
+
+
+def check_handover(raw) -> dict:
+    """The `handover` table with its defaults; ValueError saying what it must be."""
+    if not isinstance(raw, dict) or set(raw) - set(HANDOVER_KEYS) or "level" not in raw:
+        raise ValueError(
+            f"a table with 'level' (and optionally {', '.join(HANDOVER_KEYS[1:])})"
+        )
+    numbers = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+        for v in raw.values()
+    )
+    if not numbers:
+        raise ValueError("a table of finite numbers")
+    level = float(raw["level"])
+    out = {"level": level, "verify_level": VERIFY_REACH * level, "shaping": 0.0, "verify": 0.0}
+    out.update({k: float(v) for k, v in raw.items()})
+    if not (
+        out["level"] > 0
+        and out["verify_level"] >= out["level"]
+        and out["shaping"] >= 0
+        and 0 <= out["verify"] <= VERIFY_MAX
     ):
-        raise UserError(
-            "handover level must be positive, verify_level at least the level, and shaping "
-            f"and verify non-negative and finite, got {out}."
+        raise ValueError(
+            "a table with a positive level, verify_level at least the level, shaping >= 0 "
+            f"and verify in [0, {VERIFY_MAX:g}] seconds"
         )
     return out
 
@@ -84,6 +102,8 @@ class CaptureSet:
         self.env = lagrange_env(env)
         self.lqr = lqr if lqr is not None else LQRPolicy(self.env)
         self.level = float(level)
+        if not 0 <= float(verify) <= VERIFY_MAX:
+            raise ValueError(f"verify must be in [0, {VERIFY_MAX:g}] seconds, got {verify}.")
         self.verify_steps = int(np.ceil(float(verify) / self.env.control_period - 1e-9))
         reach = VERIFY_REACH * self.level
         self.verify_level = reach if verify_level is None else float(verify_level)

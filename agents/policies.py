@@ -146,8 +146,8 @@ class SwingUpPolicy(Policy):
     - balance: LQR once its cost-to-go dx' P dx is below `capture_level` (the level set
       from which LQR succeeds in 99 % of 200 random directions for the default acrobot;
       the task's LQR region is far smaller because the basin is a thin slab, see agents.lqr).
-    Measured on Lagrange/Acrobot-v0 (3 N*m), 50 episodes: success 20 % (seeds 0-49) and
-    16 % (seeds 1000-1049); the energy-only pump it replaces captured none. The other
+    Measured on the 3 N*m acrobot (Lagrange/Acrobot-v1), 50 episodes: success 20 % (seeds
+    0-49) and 16 % (seeds 1000-1049); the energy-only pump it replaces captured none. The other
     episodes keep swinging at about E* without passing through the hand-over set."""
 
     def __init__(
@@ -163,7 +163,7 @@ class SwingUpPolicy(Policy):
         zeta: float = 0.8,
         capture_level: float = 500.0,
     ):
-        from .lqr import LQRPolicy
+        from .lqr_policy import LQRPolicy
 
         self.env = lagrange_env(env)
         super().__init__(_single_action_space(self.env))
@@ -271,41 +271,48 @@ class SB3Policy:
         self.handover: dict | None = None  # the run's LQR hand-over (agents.handover)
 
     @classmethod
-    def load(cls, path: str | Path) -> SB3Policy:
+    def load(cls, path: str | Path, env=None) -> SB3Policy:
         """Load model.zip (the algorithm read from config.yml beside it, or tried in turn)
-        and vecnormalize.pkl if it is there."""
-        import pickle
+        and vecnormalize.pkl if it is there. With `env` (the env it will act in), the run
+        must have been trained on its id and version, with its spaces and observation size.
+        Every problem is a one-line UserError.
 
-        import yaml
-        from stable_baselines3 import PPO, SAC, TD3
+        Both files are pickles: loading them runs code, so load only runs you trust."""
+        from .hparams import algorithms
+        from .rundir import check_run_is_for, read_config
 
         path = Path(path)
         if path.is_dir():
             path = path / "model.zip"
         if not path.is_file():
             raise FileNotFoundError(f"No trained model at {path}.")
-        config = path.parent / "config.yml"
-        algos = {"ppo": PPO, "sac": SAC, "td3": TD3}
-        order = list(algos)
-        run = {}
-        if config.exists():
-            run = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-            order.insert(0, run["algo"])
+        run = read_config(path.parent)
+        env_id = _env_id(env)
+        check_run_is_for(path.parent, run, env_id)
+        algos = algorithms()
+        order = list(dict.fromkeys([run.get("algo", "ppo"), *algos]))
         model, errors = None, []
-        for name in dict.fromkeys(order):
+        for name in order:
             try:
                 model = algos[name].load(path, device="cpu")
                 break
-            except (ValueError, KeyError, TypeError, AttributeError) as exc:
-                errors.append(f"{name}: {exc}")
+            except Exception as exc:  # a damaged zip: BadZipFile, EOFError, UnpicklingError
+                errors.append(f"{name}: {' '.join(str(exc).split())[:120] or type(exc).__name__}")
         if model is None:
             raise UserError(f"{path} is not a PPO, SAC or TD3 model ({'; '.join(errors)}).")
+        if env is not None:
+            _check_spaces(path, model, env)
         policy = cls(model)
         stats = path.parent / "vecnormalize.pkl"
         if stats.exists():
-            with open(stats, "rb") as fh:
-                vecnorm = pickle.load(fh)
+            vecnorm = _read_vecnormalize(stats)
             if vecnorm.norm_obs:
+                if np.shape(vecnorm.obs_rms.mean) != model.observation_space.shape:
+                    raise UserError(
+                        f"{stats} normalises observations of shape "
+                        f"{np.shape(vecnorm.obs_rms.mean)}; the model's are "
+                        f"{model.observation_space.shape}: it is from another run."
+                    )
                 policy = cls(model, vecnorm.obs_rms, vecnorm.clip_obs, vecnorm.epsilon)
         policy.handover = (run.get("hyperparams") or {}).get("handover")
         return policy
@@ -319,3 +326,39 @@ class SB3Policy:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         obs = np.asarray(observation, dtype=np.float32)
         return self.model.predict(self.normalize(obs), state, episode_start, deterministic)
+
+
+def _env_id(env) -> str | None:
+    spec = getattr(env, "spec", None) or getattr(getattr(env, "unwrapped", None), "spec", None)
+    return getattr(spec, "id", None)
+
+
+def _check_spaces(path: Path, model, env) -> None:
+    """UserError when the model's observation or action space differs from the env's."""
+    obs = getattr(env, "single_observation_space", env.observation_space)
+    act = getattr(env, "single_action_space", env.action_space)
+    if model.observation_space.shape != obs.shape or model.action_space.shape != act.shape:
+        raise UserError(
+            f"{path} was trained on observations {model.observation_space.shape} and actions "
+            f"{model.action_space.shape}; the env has {obs.shape} and {act.shape}: it was "
+            "trained on another environment."
+        )
+
+
+def _read_vecnormalize(path: Path):
+    """A VecNormalize pickle (SB3's format), or UserError for a damaged or foreign file."""
+    import pickle
+
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    try:
+        with open(path, "rb") as fh:
+            vecnorm = pickle.load(fh)
+    except Exception as exc:  # truncated: EOFError, UnpicklingError; foreign: anything
+        raise UserError(
+            f"{path} cannot be read ({type(exc).__name__}: {str(exc)[:80]}); it is damaged "
+            "or not normalisation statistics."
+        ) from None
+    if not isinstance(vecnorm, VecNormalize):
+        raise UserError(f"{path} holds a {type(vecnorm).__name__}, not VecNormalize statistics.")
+    return vecnorm

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import atomic_path, write_atomic
-from .evaluate import ENDINGS, EvalStats
+from .episodes import ENDINGS, EvalStats
 
 LEVEL = 0.95
 Z = 1.959963984540054  # the standard normal's 0.975 quantile

@@ -28,8 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .common import lagrange_env
-from .lqr import LQRPolicy, refuse_time_dependent
-from .plan import Plan, PlanError, action_matrix, env_step, env_tableau, plan, step_jacobians
+from .lqr_policy import LQRPolicy, refuse_time_dependent
+from .discrete import action_matrix, env_step, env_tableau, step_jacobians
+from .ilqr import Plan, PlanError, plan
 
 __all__ = ["PlanPolicy", "Tracker", "tvlqr"]
 

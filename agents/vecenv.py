@@ -15,7 +15,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor, VecNormalize
+
+from .handover import HandOverVecEnv, handover_options
 
 VECTORIZATIONS = ("auto", "native", "dummy")
 
@@ -139,3 +141,33 @@ def make_sb3_vec_env(env_id: str, n_envs: int, seed: int, vectorization: str = "
         venv = make_vec_env(env_id, n_envs=n_envs, vec_env_cls=DummyVecEnv)
     venv.seed(seed)
     return venv
+
+
+# ---- the training run's envs -------------------------------------------------------------
+def _normalize_kwargs(hp: dict) -> dict | None:
+    normalize = hp.get("normalize", False)
+    if normalize is True:
+        return {}
+    if not normalize:
+        return None
+    return dict(normalize)
+
+
+def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):
+    """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks."""
+    train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization)
+    eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization)
+    handover = handover_options(hp.get("handover"))
+    if handover is not None:  # the agent learns in the closed loop it will act in
+        gamma = float(hp.get("gamma", 0.99))
+        # the agent learns to aim at the level set; it is evaluated as it will act, with
+        # the verified states added (agents.handover)
+        check = {k: handover[k] for k in ("verify", "verify_level")}
+        train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
+        eval_env = HandOverVecEnv(eval_env, handover["level"], **check)
+    norm = _normalize_kwargs(hp)
+    if norm is not None:
+        train_env = VecNormalize(train_env, **norm)
+        eval_env = VecNormalize(eval_env, **{**norm, "training": False, "norm_reward": False})
+    return train_env, eval_env
+

@@ -67,7 +67,7 @@ def ppo_vectorization_rate(env_id: str, vectorization: str, n_envs: int = 16) ->
     from stable_baselines3.common.vec_env import VecNormalize
 
     from agents import hparams
-    from agents.train import algo_kwargs
+    from agents.hparams import algo_kwargs
     from agents.vecenv import make_sb3_vec_env
 
     hp = {**hparams.load("ppo", env_id), "n_steps": 256, "batch_size": 512}

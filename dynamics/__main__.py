@@ -56,7 +56,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "cache":
         from . import cache
 
-        root = cache.cache_dir()
+        try:
+            root = cache.cache_dir()
+        except OSError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         files = sorted(root.glob("*.py"))
         if args.clear:
             import shutil

@@ -3,24 +3,34 @@
 
 Each compiled model is one Python file named by a key that hashes everything its code depends
 on; numba keeps its machine code beside it (``__pycache__``). The file's first line records
-its key and the sha256 of the rest, and both are checked before the file is run. Files are
-written to a temporary name and renamed, so readers never see a partial file; a process that
-must build a missing model holds a lock (``flock``, released by the system if the process
-dies) while the others wait for its file instead of deriving it too. A file that fails a check
-or fails to load, or whose numba cache files are unreadable, is removed and rebuilt.
+its key and the sha256 of the rest, and both are checked before the file is run: that finds
+damage, not tampering (anyone who can write the file can write the line too). Where the loader
+knows the exact text it expects (the fused steps, a pickled model's own source) it compares
+the whole file with it. Files are written to a temporary name and renamed, so readers never
+see a partial file; a process that must build a missing model holds a lock (``flock``,
+released by the system if the process dies) while the others wait for its file instead of
+deriving it too. A file that fails a check or fails to load, or whose numba cache files are
+not well-formed pickles (checked by parsing, never by unpickling), is removed and rebuilt.
+Only regular files of at most `MAX_FILE_BYTES` are read (a FIFO or a link to a device is
+discarded, not opened for reading).
 
-The directory is ``$LAGRANGE_GYM_CACHE`` if set, else ``$XDG_CACHE_HOME/lagrange-gym`` (or
-``~/.cache/lagrange-gym``), created private to its user (0o700). If it cannot be written,
-models are built in a private temporary directory removed at exit, with one warning.
+What is in the cache runs as code: the modules when loaded, numba's files when numba
+unpickles them. So the directory must be writable by its user alone. It is
+``$LAGRANGE_GYM_CACHE`` if set, else ``$XDG_CACHE_HOME/lagrange-gym`` (or
+``~/.cache/lagrange-gym``), created private to its user (0o700). One that another user owns
+or that group or others may write is not used: models are then built in a private temporary
+directory removed at exit, with one warning saying why (as when it cannot be written).
 """
 
 from __future__ import annotations
 
 import atexit
 import hashlib
+import io
 import os
-import pickle
+import pickletools
 import shutil
+import stat
 import sys
 import tempfile
 import time
@@ -40,6 +50,8 @@ ENV_VAR = "LAGRANGE_GYM_CACHE"
 LOCK_TIMEOUT = 600.0
 """Seconds to wait for another process's build before building anyway (a cold derivation
 takes well under a minute)."""
+MAX_FILE_BYTES = 64 * 2**20
+"""The largest cache file read (a generated module is well under 1 MiB; numba's files too)."""
 _HEADER = "# lagrange-gym "
 _loaded: dict[str, ModuleType] = {}
 _fallback: list[Path] = []
@@ -59,7 +71,32 @@ def cache_dir() -> Path:
         raise OSError(
             f"Cannot create the model cache {path}; set {ENV_VAR} to a writable directory."
         ) from exc
+    for folder in (path, path / "__pycache__"):
+        problem = _unsafe(folder)
+        if problem:
+            raise UnsafeCacheError(
+                f"{folder} {problem}, so what is in it cannot be trusted to run; make it "
+                f"private (chmod 700) or set {ENV_VAR} to a directory of your own"
+            )
     return path
+
+
+class UnsafeCacheError(OSError):
+    """The cache directory is one that other users can write."""
+
+
+def _unsafe(folder: Path) -> str | None:
+    """Why `folder` (if it exists; a link is followed) cannot be trusted: another owner, or
+    write permission for group or others."""
+    try:
+        st = folder.stat()
+    except FileNotFoundError:
+        return None
+    if st.st_uid != os.geteuid():
+        return f"is owned by uid {st.st_uid}, not by this user (uid {os.geteuid()})"
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+    return None
 
 
 def _private_dir(reason: Exception) -> Path:
@@ -68,8 +105,9 @@ def _private_dir(reason: Exception) -> Path:
         path = Path(tempfile.mkdtemp(prefix="lagrange-gym-"))  # 0o700
         atexit.register(shutil.rmtree, path, ignore_errors=True)
         _fallback.append(path)
+        what = "is not used" if isinstance(reason, UnsafeCacheError) else "is not writable"
         warnings.warn(
-            f"The model cache is not writable ({reason}); compiled models go to a temporary "
+            f"The model cache {what} ({reason}); compiled models go to a temporary "
             f"directory for this process only. Set {ENV_VAR} to a writable directory to keep "
             "them.",
             RuntimeWarning,
@@ -107,34 +145,69 @@ def _discard(path: Path, module_too: bool = True) -> None:
             pass
 
 
-def _numba_files_readable(path: Path) -> bool:
-    """Whether numba's index and data files for the loaded module at `path` unpickle (numba
-    itself would crash on the first call of a kernel whose file is truncated or garbage)."""
+def read_bytes(path: Path) -> bytes:
+    """The bytes of the regular file at `path`, at most `MAX_FILE_BYTES` of them.
+
+    Raises FileNotFoundError if it is missing and OSError if it is not a regular file (a
+    FIFO, a device, a directory; opened without blocking) or is larger."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise OSError(f"{path} is not a regular file")
+        if st.st_size > MAX_FILE_BYTES:
+            raise OSError(f"{path} is larger than {MAX_FILE_BYTES} bytes")
+        with os.fdopen(fd, "rb", closefd=False) as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+    finally:
+        os.close(fd)
+    if len(data) > MAX_FILE_BYTES:
+        raise OSError(f"{path} is larger than {MAX_FILE_BYTES} bytes")
+    return data
+
+
+def _well_formed_pickles(data: bytes, count: int) -> bool:
+    """Whether `data` is exactly `count` complete pickle streams, parsed without running any
+    of it (`pickletools.genops` reads opcodes; nothing is constructed)."""
+    stream = io.BytesIO(data)
+    try:
+        for _ in range(count):
+            for _ in pickletools.genops(stream):
+                pass
+    except Exception:
+        return False
+    return stream.tell() == len(data)
+
+
+def _numba_files_sound(path: Path) -> bool:
+    """Whether numba's index and data files for the module at `path` are regular files of
+    well-formed pickles (numba itself would crash on the first call of a kernel whose file is
+    truncated or garbage, and hang on a FIFO). An index is two pickles (numba's format
+    version, then its entries), a data file one."""
     folder = path.parent / "__pycache__"
     try:
-        for index in folder.glob(f"{path.stem}.*.nbi"):
-            with open(index, "rb") as fh:
-                pickle.load(fh)  # numba's format version
-                _, overloads = pickle.loads(fh.read())
-            for data in overloads.values():
-                pickle.loads((folder / data).read_bytes())
+        for f in folder.glob(f"{path.stem}.*.nb[ic]"):
+            count = 2 if f.suffix == ".nbi" else 1
+            if not _well_formed_pickles(read_bytes(f), count):
+                return False
     except FileNotFoundError:
         return True  # removed by a concurrent rebuild: numba recompiles
-    except Exception:
+    except OSError:
         return False
     return True
 
 
-def _load_file(path: Path, key: str) -> ModuleType | None:
-    """The verified module at `path`, or None (a damaged file is discarded)."""
+def _load_file(path: Path, key: str, expected: str | None = None) -> ModuleType | None:
+    """The verified module at `path`, or None (a damaged file is discarded). With
+    `expected`, the file must hold exactly that text."""
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = read_bytes(path).decode("utf-8")
     except FileNotFoundError:
         return None
     except (OSError, UnicodeDecodeError):
         _discard(path)
         return None
-    if body_of(text, key) is None:
+    if body_of(text, key) is None or (expected is not None and text != expected):
         _discard(path)
         return None
     module_name = f"lagrange_gym_generated.{path.stem}"
@@ -149,7 +222,7 @@ def _load_file(path: Path, key: str) -> ModuleType | None:
         del sys.modules[module_name]
         _discard(path)
         return None
-    if not _numba_files_readable(path):  # the module is fine: numba recompiles its kernels
+    if not _numba_files_sound(path):  # the module is fine: numba recompiles its kernels
         _discard(path, module_too=False)
     return module
 
@@ -157,7 +230,8 @@ def _load_file(path: Path, key: str) -> ModuleType | None:
 def load(name: str, key: str, body: str | None = None) -> ModuleType | None:
     """The generated module for (name, key): from memory, from disk, or written from `body`.
 
-    Returns None when it is not cached (or damaged) and no body is given.
+    With `body`, a file on disk is used only if it holds exactly that body (else it is
+    rewritten). Returns None when it is not cached (or damaged) and no body is given.
     """
     if key in _loaded:
         return _loaded[key]
@@ -165,15 +239,15 @@ def load(name: str, key: str, body: str | None = None) -> ModuleType | None:
         path = cache_dir() / _file_name(name, key)
     except OSError as exc:
         path = _private_dir(exc) / _file_name(name, key)
-    module = _load_file(path, key)
-    if module is None and body is not None:
-        text = stamped(key, body)
+    text = None if body is None else stamped(key, body)
+    module = _load_file(path, key, text)
+    if module is None and text is not None:
         try:
             write_atomic(path, text)
         except OSError as exc:
             path = _private_dir(exc) / path.name
             write_atomic(path, text)
-        module = _load_file(path, key)
+        module = _load_file(path, key, text)
         if module is None:
             raise RuntimeError(f"The generated module {path} does not load.")
     if module is not None:

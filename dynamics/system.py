@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
+from pathlib import Path
 from types import ModuleType
 
 import numba
@@ -77,8 +78,8 @@ class System:
     def _source_text(self) -> str:
         """The generated module's body (without the cache's stamp line)."""
         if self._source is None:
-            with open(self._m.__file__, encoding="utf-8") as fh:
-                self._source = cache.body_of(fh.read(), self._m.KEY)
+            text = cache.read_bytes(Path(self._m.__file__)).decode("utf-8")
+            self._source = cache.body_of(text, self._m.KEY)
             if self._source is None:
                 raise RuntimeError(f"{self._m.__file__} changed on disk since it was loaded.")
         return self._source

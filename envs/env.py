@@ -62,8 +62,19 @@ class LagrangianEnv(ContractMixin, gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if self._horizon is None:  # the episode limit the early-end penalty counts
             self._horizon = enclosing_time_limit(self)
-        super().reset(seed=seed)
-        x, g = self._rt.plant.start_rows([self.np_random], options, [0], None)
+        whole = isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
+        if seed is not None and not whole:
+            raise ValueError(f"seed must be an int or None, got {seed!r:.80}.")
+        before = self._np_random, self._np_random_seed
+        state = None if self._np_random is None else self._np_random.bit_generator.state
+        super().reset(seed=None if seed is None else int(seed))
+        try:
+            x, g = self._rt.plant.start_rows([self.np_random], options, [0], None)
+        except (TypeError, ValueError):  # refused options leave the generator as it was
+            self._np_random, self._np_random_seed = before
+            if state is not None:
+                self._np_random.bit_generator.state = state
+            raise
         self._rt.reset_rows([0], x, g)
         self._ready = True
         self._history = []
@@ -74,8 +85,9 @@ class LagrangianEnv(ContractMixin, gym.Env):
     def step(self, action):
         if not self._ready:
             raise RuntimeError("Call reset() before step().")
-        # float32 and float64 arrays go to the runtime as they are (it reads either)
-        if type(action) is np.ndarray and action.dtype.char in "fd":
+        # native float32 and float64 arrays go to the runtime as they are (it reads either;
+        # the compiled step takes no other byte order)
+        if type(action) is np.ndarray and action.dtype.char in "fd" and action.dtype.isnative:
             a = action
         else:
             a = real_array(action, "action")

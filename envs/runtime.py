@@ -275,7 +275,7 @@ class Runtime:
 
     def _plan(self):
         """(plan, constants as float64, constants as int64) of the fused step."""
-        lay, s = self.layout, self.system
+        lay, s = self.plant, self.system
         a, w, c = method_tableau(self.integrator)
         # the generated step names each array as the runtime does, less the underscore
         floats = [(name.lstrip("_"), start, w) for name, start, w in self._segments()]
@@ -431,7 +431,7 @@ class Runtime:
         self.success[rows] = False
         self.Q[rows] = 0.0
         self.R[rows] = 0.0
-        lay = self.layout
+        lay = self.plant
         x, g, a = self.rows()[rows], self.G[rows], self.A[rows]
         obs = np.zeros((len(x), lay.obs_size))
         observe(x, g, lay.ops, lay.obs_low, lay.obs_high, obs)
@@ -445,7 +445,7 @@ class Runtime:
         """Advance every row one control period under `actions` (N, n_a), finite; the
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
-        lay = self.layout
+        lay = self.plant
         if self._fused is not None:
             f = actions.flags
             step = self._fused_bound.get((actions.dtype, f.c_contiguous, f.writeable, f.aligned))
@@ -474,14 +474,14 @@ class Runtime:
         numba's cache on first use), bound as `bind` does."""
         f = actions.flags
         args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
-                self._p_model, self.layout.p, -1)  # fmt: skip
+                self._p_model, self.plant.p, -1)  # fmt: skip
         self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
         step = bind(self._fused, args)
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
         return step
 
     def _evaluate(self, steps_left: np.ndarray) -> bool:
-        lay = self.layout
+        lay = self.plant
         x = self.rows()
         self._observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
         if self._derived:  # the declared features are clipped by `observe` already
@@ -500,7 +500,7 @@ class Runtime:
 
     def rows(self) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs."""
-        lay = self.layout
+        lay = self.plant
         if not len(lay.output_index):
             return self.X
         self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)

@@ -48,22 +48,16 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"The vector env renders only 'rgb_array', got {render_mode!r}.")
         self.render_mode = render_mode
-        try:
-            mode = AutoresetMode(autoreset_mode)
-        except ValueError:
-            raise ValueError(
-                f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}."
-            ) from None
-        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode}.")
-        self.autoreset_mode = mode
+        self._done = np.zeros(self.num_envs, dtype=bool)
+        self.metadata = dict(type(self).metadata)
+        self.autoreset_mode = autoreset_mode
         self.max_episode_steps = (
             task.max_episode_steps
             if max_episode_steps is None
             else positive_int("max_episode_steps", max_episode_steps)
         )
         fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
-        self.metadata = {**type(self).metadata, "render_fps": fps, "autoreset_mode": mode}
+        self.metadata["render_fps"] = fps
         # the spaces of one copy are the single env's, built from the same layout
         lay = self._rt.plant
         one = gym.spaces.Box(
@@ -74,18 +68,41 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         self.observation_space = batch_space(one, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
-        self._done = np.zeros(self.num_envs, dtype=bool)
         self._ready = False
         self._viewer = None
 
+    @property
+    def autoreset_mode(self) -> AutoresetMode:
+        """NEXT_STEP or SAME_STEP (an AutoresetMode, its value or its name). Changed
+        mid-run, copies that finished under NEXT_STEP still start afresh on the next step
+        (so no copy steps on from its end), and `metadata` follows."""
+        return self._autoreset_mode
+
+    @autoreset_mode.setter
+    def autoreset_mode(self, value) -> None:
+        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        mode = next((m for m in modes if value in (m, m.value, m.name)), None)
+        if mode is None:
+            raise ValueError(
+                "autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or their names "
+                f"'NEXT_STEP', 'SAME_STEP', or values 'NextStep', 'SameStep'), got {value!r}."
+            )
+        self._autoreset_mode = mode
+        self.metadata["autoreset_mode"] = mode
+
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        rngs = self._rngs
         if seed is not None:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else seed
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"Expected {self.num_envs} seeds, got {len(seeds)}.")
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+            rngs = [seeding.np_random(s)[0] for s in _seeds(seed, self.num_envs)]
+        states = [r.bit_generator.state for r in rngs]
         rows = list(range(self.num_envs))
-        x, g = self._rt.plant.start_rows(self._rngs, options, rows, self.num_envs)
+        try:
+            x, g = self._rt.plant.start_rows(rngs, options, rows, self.num_envs)
+        except (TypeError, ValueError):  # refused options leave the generators as they were
+            for r, state in zip(rngs, states):
+                r.bit_generator.state = state
+            raise
+        self._rngs = rngs
         self._rt.reset_rows(rows, x, g)
         self._done[:] = False
         self._ready = True
@@ -101,16 +118,17 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
             rows = np.flatnonzero(~np.isfinite(a).all(axis=1))
             raise ValueError(f"Actions contain NaN or inf (envs {rows.tolist()}).")
         rt = self._rt
-        resetting = self._done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else None
+        resetting = self._done.copy()  # NEXT_STEP: last step's finished copies start afresh
         rt.step(a, self.max_episode_steps)
         terminated = rt.terminated.copy()
         truncated = (rt.steps >= self.max_episode_steps) & ~terminated
-        if resetting is not None:  # NEXT_STEP: last step's finished copies start afresh
-            if resetting.any():
-                self._reset_rows(np.flatnonzero(resetting))
-                terminated[resetting] = truncated[resetting] = False
+        if resetting.any():
+            self._reset_rows(np.flatnonzero(resetting))
+            terminated[resetting] = truncated[resetting] = False
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             self._done = terminated | truncated
             return rt.O.copy(), rt.R.copy(), terminated, truncated, self._info()
+        self._done[:] = False
         done = terminated | truncated
         info = self._info()
         if done.any():  # SAME_STEP: report the last observation, then start afresh
@@ -174,6 +192,20 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         state = self.__dict__.copy()
         state["_viewer"] = None
         return state
+
+
+def _seeds(seed, n: int) -> list:
+    """Per-copy seeds of `seed`: an int s gives s, s + 1, ...; else a list of n ints or
+    None (as SyncVectorEnv takes them)."""
+    whole = (int, np.integer)
+    if isinstance(seed, whole) and not isinstance(seed, bool):
+        return [int(seed) + i for i in range(n)]
+    ok = isinstance(seed, (list, tuple)) and all(
+        s is None or (isinstance(s, whole) and not isinstance(s, bool)) for s in seed
+    )
+    if not ok or len(seed) != n:
+        raise ValueError(f"seed must be an int or a list of {n} ints (or None), got {seed!r:.80}.")
+    return list(seed)
 
 
 __all__ = ["LagrangianEnv", "LagrangianVectorEnv"]

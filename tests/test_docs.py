@@ -25,7 +25,14 @@ def test_the_new_system_walkthrough_runs_as_written(tmp_path, monkeypatch, capsy
     obs, _ = env.reset(seed=0)
     assert obs.shape == (5,) and env.unwrapped.system.parameters["m_pole"] == 0.2
     assert "| 0 | F | 10 |" in module.TASK.describe()
-    from agents import lqr_cli
+    from agents import lqr
 
-    assert lqr_cli.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0
+    assert lqr.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0
     assert "LQR: success 10/10" in capsys.readouterr().out
+
+
+def test_ci_runs_the_readme_test_command_word_for_word():
+    root = PAGE.parents[1]
+    blocks = re.findall(r"```bash\n(.*?)```", (root / "README.md").read_text(), re.S)
+    command = next(b.strip() for b in blocks if "pytest" in b and "venv" in b)
+    assert command in (root / ".ci" / "run").read_text().splitlines()

@@ -16,6 +16,7 @@ from agents.common import UserError
 
 ARM = next(env_id for env_id in envs.ENV_IDS if "/TwoLinkArm-" in env_id)
 ARM_DIR = "train/" + ARM.replace("/", "-")
+REPORT = ARM.replace("/", "-")  # the report of run_check([ARM]): out/REPORT, its links relative
 
 
 @pytest.fixture
@@ -35,7 +36,12 @@ def check(out, timesteps, hyperparams=None, fresh=False):
 
 def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     out = tmp_path / "check"
+    (out / "results.md").parent.mkdir()
+    (out / "results.md").write_text("the report of every env, from an earlier invocation")
     rows = check(out, 128, tiny)
+    # the envs given get a report of their own; the earlier report stays
+    assert (out / "results.md").read_text().startswith("the report of every env")
+    report_dir, out = out, out / REPORT
     agents = [r.agent for r in rows]
     assert agents[:4] == ["random", "zero", "heuristic", "lqr"] and agents[-1] == "ppo"
     printed = capsys.readouterr().out
@@ -47,13 +53,14 @@ def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     # the header names the algorithm and the budget, and links the learning curve
     run_dir = f"{ARM_DIR}/ppo_seed0_128steps"
     assert f"- {ARM}: PPO, 128 steps (128 trained in " in report
-    assert f"[learning curve]({run_dir}/learning_curve.png)" in report
-    assert (out / run_dir / "learning_curve.png").exists()
+    assert f"[learning curve](../{run_dir}/learning_curve.png)" in report
+    assert (report_dir / run_dir / "learning_curve.png").exists()
+    assert f"Report, CSV and plot in {out}/" in printed
     assert all(sum(r.stats.endings().values()) == 2 for r in rows)
     csv_lines = (out / "results.csv").read_text().splitlines()
     assert len(csv_lines) == 1 + len(rows)
     # a second run reuses the finished training, and its stored training time
-    again = check(out, 128, tiny)
+    again = check(report_dir, 128, tiny)
     assert again[-1].stats.returns.tolist() == rows[-1].stats.returns.tolist()
     assert again[-1].training.train_s == rows[-1].training.train_s > 0
     assert (
@@ -70,8 +77,8 @@ def test_another_budget_trains_a_fresh_run_and_keeps_the_earlier(tmp_path, tiny)
     assert (second.budget, second.timesteps) == (192, 192)  # trained from 0, not from 64
     assert first.run_dir != second.run_dir
     for t in (first, second):
-        assert (tmp_path / t.run_dir / "model.zip").exists()
-    segments = json.loads((tmp_path / second.run_dir / TIME_FILE).read_text())["segments"]
+        assert (tmp_path / REPORT / t.run_dir / "model.zip").exists()
+    segments = json.loads((tmp_path / REPORT / second.run_dir / TIME_FILE).read_text())["segments"]
     assert [(s["from"], s["to"]) for s in segments] == [(0, 192)]
 
 
@@ -89,7 +96,7 @@ def test_a_run_with_other_hyperparameters_is_refused_until_fresh(tmp_path, tiny,
     err = capsys.readouterr().err
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "--fresh" in err
     retrained = check(tmp_path, 64, changed, fresh=True)[-1].training
-    config = yaml.safe_load((tmp_path / run.run_dir / "config.yml").read_text())
+    config = yaml.safe_load((tmp_path / REPORT / run.run_dir / "config.yml").read_text())
     assert retrained.run_dir == run.run_dir and config["hyperparams"]["batch_size"] == 32
 
 

@@ -63,3 +63,60 @@ def test_cli_prints_the_scores(capsys):
 def test_evaluate_rejects_a_non_positive_episode_count():
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
         evaluate("Lagrange/CrankSlider-v1", "zero", episodes=0)
+
+
+# ---- saved runs are checked against the env they are loaded for (issue 20) ---------------
+@pytest.fixture(scope="module")
+def bead_run(tmp_path_factory):
+    from agents.train import train
+
+    run = tmp_path_factory.mktemp("bead_run")
+    train("Lagrange/BeadOnRod-v1", timesteps=256, n_envs=1, run_dir=run, progress=False)
+    return run
+
+
+def _foreign_vecnormalize(path):
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    VecNormalize(DummyVecEnv([lambda: gym.make("Lagrange/TwoLinkArm-v1")])).save(path)
+
+
+@pytest.mark.parametrize(
+    "damage, env_id, message",
+    [
+        (None, "Lagrange/CrankSlider-v1", "trained on Lagrange/BeadOnRod-v1, not on"),
+        (None, "Lagrange/Acrobot-v2", "trained on Lagrange/BeadOnRod-v1, not on"),
+        ("foreign statistics", None, "normalises observations of shape (14,)"),
+        ("truncated statistics", None, "vecnormalize.pkl cannot be read"),
+        ("truncated model", None, "is not a PPO, SAC or TD3 model"),
+        ("config a list", None, "config.yml is not a run's config"),
+        ("config without env_id", None, "env_id must be a string"),
+    ],
+)
+def test_a_saved_run_is_checked_against_the_env_in_one_line(
+    bead_run, tmp_path, damage, env_id, message, capsys
+):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(bead_run, run)
+    if damage == "foreign statistics":
+        _foreign_vecnormalize(run / "vecnormalize.pkl")
+    elif damage is not None and damage.startswith("truncated"):
+        f = run / ("model.zip" if damage.endswith("model") else "vecnormalize.pkl")
+        f.write_bytes(f.read_bytes()[:100])
+    elif damage == "config a list":
+        (run / "config.yml").write_text("- env_id\n- algo\n")
+    elif damage == "config without env_id":
+        (run / "config.yml").write_text("algo: ppo\n")
+    argv = [env_id or "Lagrange/BeadOnRod-v1", "--agent", str(run), "--episodes", "2"]
+    with pytest.raises(SystemExit) as ended:
+        main(argv)
+    err = capsys.readouterr().err.strip()
+    assert ended.value.code == 2
+    assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
+
+
+def test_a_saved_run_evaluates_on_its_own_env(bead_run):
+    stats = evaluate("Lagrange/BeadOnRod-v1", str(bead_run), episodes=2)
+    assert len(stats.returns) == 2

@@ -151,6 +151,7 @@ def test_a_trained_run_with_handover_acts_through_lqr_after_loading(tmp_path):
         {"level": -1.0},
         {"level": 5.0, "shaping": -1},
         {"level": 5.0, "verify": float("nan")},
+        {"level": 5.0, "verify": 1e9},  # would simulate for years inside one step
         {"level": 5.0, "verify_level": 1.0},
         {"level": "high"},
         [500],

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import dynamics
-from agents import closed_loop, linear, lqr, lqr_cli
+from agents import closed_loop, linear, lqr
 from agents.policies import ZeroPolicy
 from envs import acrobot
 
@@ -244,7 +244,7 @@ def test_uncontrollable_env_setup_is_reported(capsys):
 
 def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
     out = tmp_path / "bead.png"
-    assert lqr_cli.main(["Lagrange/BeadOnRod-v1", "--episodes", "10", "--plot", str(out)]) == 0
+    assert lqr.main(["Lagrange/BeadOnRod-v1", "--episodes", "10", "--plot", str(out)]) == 0
     text = capsys.readouterr().out
     for part in (
         "A (continuous",
@@ -262,7 +262,7 @@ def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
 
 def test_command_line_rejects_unknown_env(capsys):
     with pytest.raises(SystemExit):
-        lqr_cli.main(["Lagrange/Acrobat-v1"])
+        lqr.main(["Lagrange/Acrobat-v1"])
     assert "Did you mean 'Lagrange/Acrobot-v1'" in capsys.readouterr().err
 
 

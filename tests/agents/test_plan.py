@@ -3,6 +3,8 @@ acrobot they make solvable (Lagrange/Acrobot-v2)."""
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -49,9 +51,22 @@ def test_step_jacobians_are_the_derivative_of_the_envs_step():
         np.testing.assert_allclose(Fu[i][:, 1], fd, rtol=1e-6, atol=1e-7)
 
 
-def test_unknown_planner_option_is_refused():
-    with pytest.raises(ValueError, match="Unknown planner option 'horizn'"):
-        planning.plan_options(gym.make(ACROBOT), horizn=3.0)
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"horizn": 3.0}, "Unknown planner option 'horizn'"),
+        ({"horizon": 1e9}, "must be a number in (0.0, 3600.0]"),  # 149 GiB of steps
+        ({"horizon": 3000.0}, "more than 20000 control periods"),
+        ({"horizon": -1}, "horizon in the planner"),  # planned one step
+        ({"max_iterations": 0}, "max_iterations in the planner"),  # planned nothing
+        ({"goal_tolerance": float("nan")}, "goal_tolerance in the planner"),  # disabled the check
+        ({"jacobian_substeps": 0}, "jacobian_substeps in the planner"),  # divided by zero
+    ],
+)
+def test_bad_planner_options_are_refused_in_one_line(options, message):
+    with pytest.raises(ValueError, match=re.escape(message)) as error:
+        planning.plan_options(gym.make(ACROBOT), **options)
+    assert "\n" not in str(error.value)
 
 
 # ---- the solvable acrobot ----------------------------------------------------------------

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import envs
-from agents import train as train_mod
 from agents.common import UserError
 from agents.policies import SB3Policy
-from agents.train import latest_checkpoint, main, train
+from agents.rundir import latest_checkpoint
+from agents.train import main, train
 
 
 def _env_id(name: str) -> str:
@@ -87,7 +87,7 @@ def test_hyperparameters_exist_for_every_env_and_algorithm():
 
     for algo in hparams.ALGOS:
         for env_id in envs.ENV_IDS:
-            kwargs = train_mod.algo_kwargs(algo, hparams.load(algo, env_id), 2)
+            kwargs = hparams.algo_kwargs(algo, hparams.load(algo, env_id), 2)
             assert "policy_kwargs" in kwargs
 
 

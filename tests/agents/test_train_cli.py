@@ -43,6 +43,14 @@ def test_one_process_trains_into_a_directory_at_a_time(tmp_path):
         (None, "does not exist"),
         ("{BEAD}: {{n_stepz: 64}}", "n_stepz"),
         ("{BEAD}: [1, 2", "YAML"),
+        # every value is checked where it is read; the message names the file and the key
+        ("{BEAD}: {{n_timesteps: abc}}", "n_timesteps must be an integer in [1, "),
+        ("{BEAD}: {{n_envs: two}}", "n_envs must be an integer"),
+        ("{BEAD}: {{gamma: 2.0}}", "gamma must be a number in (0.0, 1.0]"),
+        ("{BEAD}: {{policy_kwargs: {{net_arch: big}}}}", "net_arch to be a list of 1 to 16"),
+        ("{BEAD}: {{learning_rate: lin_fast}}", "learning_rate must be 'lin_X' with X"),
+        ("{BEAD}: {{handover: {{level: 5, verify: 1.0e+9}}}}", "verify in [0, 60] seconds"),
+        ("{BEAD}: {{normalize: {{clip_obs: -1}}}}", "clip_obs to be a number"),
     ],
 )
 def test_bad_hyperparameter_files_are_one_line_errors(text, message, tmp_path, capsys):
@@ -50,8 +58,24 @@ def test_bad_hyperparameter_files_are_one_line_errors(text, message, tmp_path, c
     if text is not None:
         path.write_text(text.format(BEAD=BEAD))
     argv = [BEAD, "--hyperparams", str(path), "--run-dir", str(tmp_path / "run")]
-    assert message in _one_line_error(argv, capsys)
+    err = _one_line_error(argv, capsys)
+    assert message in err
+    assert text is None or str(path) in err
     assert not (tmp_path / "run" / "config.yml").exists()
+
+
+def test_an_alias_bomb_is_refused_before_it_expands(tmp_path, capsys):
+    """Nine levels of ten aliases each stand for 10**9 values in 1 KB; the file is refused
+    by counting the shared nodes, never building or printing the expanded value."""
+    lines = ["a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]"]
+    for i in range(1, 10):
+        lines.append(f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]")
+    lines.append(f"{BEAD}: {{handover: *a9}}")
+    path = tmp_path / "hp.yml"
+    path.write_text("\n".join(lines) + "\n")
+    argv = [BEAD, "--hyperparams", str(path), "--run-dir", str(tmp_path / "run")]
+    err = _one_line_error(argv, capsys)
+    assert "expands to more than" in err and len(err) < 300
 
 
 def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
@@ -62,3 +86,14 @@ def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
     assert result.model.n_steps == 128 and result.model.gamma == 0.9
     config = yaml.safe_load((run / "config.yml").read_text())
     assert config["hyperparams_file"] == str(path) and config["hyperparams"]["n_steps"] == 128
+
+
+def test_progress_shows_in_logs_as_periodic_lines(tmp_path, capsys, monkeypatch):
+    """Where stderr is not a terminal (a log file: here, pytest's capture), training prints
+    a line every LogProgress.every seconds instead of a progress bar."""
+    from agents.callbacks import LogProgress
+
+    monkeypatch.setattr(LogProgress, "every", 0.0)
+    train(BEAD, "ppo", 512, n_envs=1, run_dir=tmp_path, progress=True)
+    lines = [line for line in capsys.readouterr().err.splitlines() if "steps/s" in line]
+    assert len(lines) >= 2 and "PPO on Lagrange/BeadOnRod-v1: 512/512 steps (100%)" in lines[-1]

@@ -17,14 +17,9 @@ from stable_baselines3 import PPO, SAC
 import envs
 from agents import train as train_mod
 from agents.common import UserError, atomic_path
-from agents.train import (
-    TrainingInterrupted,
-    is_stale_temporary,
-    latest_checkpoint,
-    load_replay_buffer,
-    save_replay_buffer,
-    train,
-)
+from agents.callbacks import load_replay_buffer, save_replay_buffer
+from agents.rundir import is_stale_temporary, latest_checkpoint
+from agents.train import TrainingInterrupted, train
 
 BEAD = next(env_id for env_id in envs.ENV_IDS if "/BeadOnRod-" in env_id)
 # one env, so PPO's rollouts are the task's n_steps (256) and counts move one step at a time
@@ -204,3 +199,31 @@ def test_resume_refuses_a_checkpoint_without_its_replay_buffer(tmp_path):
         train(BEAD, timesteps=300, resume=True, **kwargs)
     result = train(BEAD, timesteps=300, resume=True, allow_missing_buffer=True, **kwargs)
     assert result.timesteps == 300 and result.model.replay_buffer.size() == 100
+
+
+def test_a_signal_during_an_evaluation_ends_it_at_the_next_step_and_saves(
+    tmp_path, monkeypatch
+):
+    """SB3 looks at callbacks only between evaluations; the evaluation polls the stop."""
+    calls = []
+
+    class SignalInEval(train_mod.ScheduledEval):
+        def _log_success_callback(self, locals_, globals_):
+            calls.append(self.num_timesteps)
+            if len(calls) == 3:
+                signal.raise_signal(signal.SIGTERM)
+            super()._log_success_callback(locals_, globals_)
+
+    monkeypatch.setattr(train_mod, "ScheduledEval", SignalInEval)
+    previous = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        with pytest.raises(TrainingInterrupted) as stopped:
+            # 50 evaluation episodes of 500 steps would take a minute
+            options = {**SMALL, "eval_episodes": 50}
+            train(BEAD, timesteps=2048, run_dir=tmp_path, eval_freq=300, **options)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert len(calls) == 3  # the step that saw the signal ended it, not 50 episodes later
+    assert stopped.value.result.timesteps == 256  # the first rollout, which the weights hold
+    assert latest_checkpoint(tmp_path / "checkpoints")[0] == 256
+    assert PPO.load(tmp_path / "model.zip", device="cpu").num_timesteps == 256

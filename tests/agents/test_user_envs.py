@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import pytest
 
-from agents import check, evaluate, hparams, lqr_cli
+from agents import check, evaluate, hparams, lqr
 
 USER_ID = "examples.cart_pole:Examples/CartPole-v0"
 
 
 def test_lqr_command_on_a_user_system(capsys):
-    assert lqr_cli.main([USER_ID, "--episodes", "20"]) == 0
+    assert lqr.main([USER_ID, "--episodes", "20"]) == 0
     out = capsys.readouterr().out
     assert "LQR: success 20/20" in out
 
@@ -29,7 +29,7 @@ def test_a_missing_heuristic_is_one_clear_line(capsys):
     assert len(err) == 1 and "declares no heuristic" in err[0]
 
 
-@pytest.mark.parametrize("main", [lqr_cli.main, check.main])
+@pytest.mark.parametrize("main", [lqr.main, check.main])
 def test_an_env_not_built_on_the_runtime_gets_a_clear_error(main, capsys):
     with pytest.raises(SystemExit):
         main(["Acrobot-v1"])

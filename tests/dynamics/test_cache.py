@@ -203,3 +203,97 @@ def test_read_only_cache_compiles_cold_with_one_warning(tmp_path, monkeypatch):
     assert len([w for w in caught if "not writable" in str(w.message)]) == 1
     assert not list(root.iterdir())
     assert np.isfinite(_derivative(a)) and b.n_q == 3
+
+
+# ---- a cache that runs only what the project wrote (issue 20) -----------------------------
+
+
+def _toy(tmp_path, monkeypatch, root=None):
+    """A private cache at `root` (default tmp_path/cache), nothing loaded; a module body
+    and the file it goes to."""
+    root = root or tmp_path / "cache"
+    monkeypatch.setenv(cache.ENV_VAR, str(root))
+    monkeypatch.setattr(cache, "_loaded", {})
+    monkeypatch.setattr(cache, "_fallback", [])
+    key = "ab" * 32
+    return key, f"KEY = {key!r}\nVALUE = 1\n", root / f"toy_{key[:20]}.py"
+
+
+def test_a_module_whose_text_differs_from_the_expected_is_rewritten_not_run(
+    tmp_path, monkeypatch
+):
+    """The fused step's loader knows the exact text: an edited body under a recomputed
+    (self-consistent) header is not run."""
+    key, body, path = _toy(tmp_path, monkeypatch)
+    marker = tmp_path / "ran"
+    path.parent.mkdir(mode=0o700)
+    path.write_text(cache.stamped(key, body + f"open({str(marker)!r}, 'w').close()\n"))
+    assert cache.load("toy", key, body).VALUE == 1
+    assert not marker.exists()
+    assert path.read_text() == cache.stamped(key, body)
+
+
+def test_numba_files_are_parsed_not_unpickled(copied_cache, tmp_path, monkeypatch):
+    """A pickle planted in numba's index is not run by the loader's check; a truncated one
+    is found by parsing and removed."""
+    marker = tmp_path / "ran"
+
+    class Planted:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    index = sorted((copied_cache.parent / "__pycache__").glob("*.nbi"))
+    index[0].write_bytes(pickle.dumps(Planted()) + pickle.dumps(("stamp", {})))
+    index[1].write_bytes(index[1].read_bytes()[:-3])
+    key = copied_cache.read_text().partition("\n")[0].split()[2]
+    assert cache.load("bead_on_rotating_rod", key) is not None
+    assert not marker.exists()
+    assert not index[1].exists()  # its numba files were discarded: numba recompiles
+
+
+def test_only_regular_files_of_bounded_size_are_read(tmp_path, monkeypatch):
+    """A FIFO as the module and a link to /dev/zero as numba's index would hang the loader
+    or fill memory: both are discarded without reading and the module is rewritten."""
+    import os
+    import signal
+
+    key, body, path = _toy(tmp_path, monkeypatch)
+    (path.parent / "__pycache__").mkdir(parents=True, mode=0o700)
+    os.mkfifo(path)
+    zero = path.parent / "__pycache__" / f"{path.stem}.f-1.py311.nbi"
+    zero.symlink_to("/dev/zero")
+
+    def hung(*args):
+        raise TimeoutError("the loader blocked on a FIFO or a device")
+
+    previous = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(20)
+    try:
+        assert cache.load("toy", key, body).VALUE == 1
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert path.read_text() == cache.stamped(key, body)
+    assert not zero.is_symlink()
+    with pytest.raises(OSError, match="not a regular file"):
+        cache.read_bytes(Path("/dev/zero"))
+
+
+@pytest.mark.parametrize("unsafe", ["mode 0777", "another owner"])
+def test_a_cache_others_can_write_is_bypassed_with_a_warning(tmp_path, monkeypatch, unsafe):
+    import os
+
+    root = tmp_path / "shared"
+    root.mkdir()
+    if unsafe == "mode 0777":
+        root.chmod(0o777)
+        reason = "writable by others"
+    else:
+        uid = os.geteuid() + 1
+        monkeypatch.setattr(cache.os, "geteuid", lambda: uid)
+        reason = "not by this user"
+    key, body, _ = _toy(tmp_path, monkeypatch, root)
+    with pytest.warns(RuntimeWarning, match=f"model cache is not used .*{reason}"):
+        module = cache.load("toy", key, body)
+    assert module.VALUE == 1
+    assert not list(root.iterdir())  # nothing written to, or run from, the shared directory

@@ -12,14 +12,15 @@ import sys
 import textwrap
 
 import gymnasium as gym
-from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
 import sympy as sp
 import sympy.physics.mechanics as me
+from gymnasium.utils.env_checker import check_env
 
 import envs
-from agents.lqr import LQRPolicy
+from agents.lqr_policy import LQRPolicy
+from agents.tvlqr import PlanPolicy
 from dynamics.spec import ModelSpec, Param
 from envs.checks import DeclarationError
 from envs.docs import describe
@@ -286,8 +287,10 @@ def test_lqr_refuses_a_time_dependent_system():
     check_env(env.unwrapped)  # a time-dependent env is an env like any other
     assert env.unwrapped.plant.time_dependent
     assert not gym.make("Examples/CartPole-v0").unwrapped.plant.time_dependent
-    with pytest.raises(ValueError, match="time-dependent"):
+    with pytest.raises(ValueError, match="LQR designs on the dynamics at one time"):
         LQRPolicy(env)
+    with pytest.raises(ValueError, match="The plan tracker designs .* time-dependent"):
+        PlanPolicy(env)
 
 
 def test_agents_that_rebuild_the_state_refuse_an_unobserved_coordinate():
@@ -295,7 +298,9 @@ def test_agents_that_rebuild_the_state_refuse_an_unobserved_coordinate():
     observation = tuple(f for f in BASE.observation if getattr(f, "name", "") != "x")
     env = envs.LagrangianEnv(dataclasses.replace(BASE, observation=observation))
     assert env.plant.unobserved == ("x",)
-    with pytest.raises(ValueError, match=r"does not observe \['x'\]"):
+    with pytest.raises(ValueError, match=r"LQR rebuilds .* does not observe \['x'\]"):
         LQRPolicy(env)
+    with pytest.raises(ValueError, match=r"The plan tracker rebuilds .* does not observe \['x'\]"):
+        PlanPolicy(env)
     # regulating only what is observed is fine
     LQRPolicy(env, states=("theta", "x_dot", "theta_dot"))

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import envs
-from tests.envs.test_runtime import former_form
 from envs import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
+from tests.envs.test_runtime import former_form
 
 IDS = list(envs.ENV_IDS) + [
     "Examples/CartPole-v0",

@@ -61,7 +61,7 @@ def test_reset_accepts_states_within_the_task_limits_only(env, state):
         return
     x = np.asarray(state, dtype=complex)
     assert len(state) == n and np.isreal(x).all()
-    assert np.isfinite(x.real).all() and (np.abs(x.real) <= env.layout.limits).all()
+    assert np.isfinite(x.real).all() and (np.abs(x.real) <= env.plant.limits).all()
     assert np.isfinite(obs).all() and env.observation_space.contains(obs)
     obs, reward, *_, info = env.step(np.zeros(env.action_space.shape))
     assert _finite_outputs(obs, reward, info)

@@ -4,7 +4,6 @@ autoreset modes, ending early never paying, envs from any kind of model, bad dec
 from __future__ import annotations
 
 import dataclasses
-
 import warnings
 
 import gymnasium as gym
@@ -16,6 +15,7 @@ import dynamics
 import envs
 from envs import arm
 from envs.layout import build_layout
+from envs.plant import Plant
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 
 IDS = list(envs.ENV_IDS) + [
@@ -32,7 +32,7 @@ def task_of(env_id):
 @pytest.mark.parametrize("env_id", IDS)
 def test_observation_inverse_maps_round_trip(env_id):
     env = gym.make(env_id).unwrapped
-    lay, rng = env.layout, np.random.default_rng(0)
+    lay, rng = env.plant, np.random.default_rng(0)
     for _ in range(20):
         env.reset(seed=int(rng.integers(1 << 30)))
         x, g = env.state, env.goal
@@ -100,7 +100,7 @@ def test_ending_early_never_pays(env_id):
     limit = gym.spec(env_id).max_episode_steps
     # bang-bang actions held for 0.5 s (the next test makes every task diverge)
     vec = gym.make_vec(env_id, 64, vectorization_mode="vector_entry_point", control_period=0.5)
-    lay = vec.unwrapped.layout
+    lay = vec.unwrapped.plant
     lowest = lay.lowest_reward
     vec.reset(seed=0)
     rng = np.random.default_rng(0)
@@ -130,7 +130,7 @@ def test_ending_early_never_pays_when_the_integration_diverges(env_id):
     vec = gym.make_vec(
         env_id, 32, vectorization_mode="vector_entry_point", control_period=2.0, substeps=1
     )
-    limit, lowest = gym.spec(env_id).max_episode_steps, vec.unwrapped.layout.lowest_reward
+    limit, lowest = gym.spec(env_id).max_episode_steps, vec.unwrapped.plant.lowest_reward
     vec.reset(seed=0)
     _, rew, term, trunc, info = vec.step(np.ones(vec.action_space.shape))
     for _ in range(10):
@@ -250,8 +250,10 @@ def test_docstring_tables_are_current():
     assert not stale, f"run `python -m envs.docs`: stale tables in {stale}"
 
 
-def test_layout_gives_the_observation_table_of_the_docstring():
-    lay = build_layout(arm.TASK, {})
+def test_the_plant_gives_the_observation_table_of_the_docstring():
+    lay = Plant.build(arm.TASK)
+    with pytest.warns(DeprecationWarning, match="Plant.build"):  # the former name still works
+        assert build_layout(arm.TASK, {}).columns == lay.columns
     labels = [c[0] for c in lay.columns]
     assert labels[:4] == ["cos theta1", "sin theta1", "cos theta2", "sin theta2"]
     assert "| 13 | sin(theta2 - theta2*) | -1 | 1 |  |" in arm.__doc__
