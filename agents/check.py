@@ -27,6 +27,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from envs.checks import Unsupported
+
 from . import hparams
 from .common import (
     DEFAULT_TORCH_THREADS,
@@ -130,7 +132,11 @@ def check_env(
     for name in BASELINES:
         if (name == "heuristic" and heuristic is None) or (name == "plan" and not plans):
             continue
-        stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
+        try:
+            stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
+        except Unsupported as exc:  # it would be wrong here, and says why
+            log(f"  {name:>9}: refused: {exc}")
+            continue
         note = heuristic.description if name == "heuristic" else ""
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.linalg
 
 from dynamics import wrap
+from envs.checks import Unsupported
 
 from .common import lagrange_env
 from .linear import (
@@ -118,7 +119,7 @@ def refuse_time_dependent(env, agent: str) -> None:
     """ValueError when the env's dynamics depend on time explicitly: an agent designed on
     the dynamics at one time (a linearisation, a plan from t = 0) would be silently wrong."""
     if env.plant.time_dependent:
-        raise ValueError(
+        raise Unsupported(
             f"{agent} designs on the dynamics at one time, and task {env.task.name!r} is "
             f"time-dependent ({env.system.name}'s accelerations change with t at fixed "
             "state: a prescribed motion or drive), so its answer would be wrong; this agent "

@@ -21,6 +21,11 @@ PLANNER = "plan"
 INTEGRATORS = ("rk4", "dop853")
 
 
+class Unsupported(ValueError):
+    """An agent that would be silently wrong on this plant refuses it (time-dependent
+    dynamics for an agent designed at one time, coordinates the observation leaves out)."""
+
+
 class DeclarationError(ValueError):
     """A task or model declaration that cannot work; the message names field and entry."""
 

@@ -232,7 +232,7 @@ class Plant:
         needed = self.state_names if needed is None else needed
         missing = [c for c in self.unobserved if c in needed]
         if missing:
-            raise ValueError(
+            raise checks.Unsupported(
                 f"{agent} rebuilds the state from the observation, and task "
                 f"{self.task.name!r} does not observe {missing}: observe them (e.g. "
                 f"Value({missing[0]!r}, ...)), or leave them out of what the agent regulates."
