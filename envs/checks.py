@@ -210,7 +210,8 @@ def check_task(task, features, Goal, Term, LQRHints, Heuristic) -> None:
         raise _fail(
             name,
             "integrator",
-            f"must be one of {INTEGRATORS}, got {task.integrator!r}.{_hint(task.integrator, INTEGRATORS)}",
+            f"must be one of {INTEGRATORS}, got "
+            f"{task.integrator!r}.{_hint(task.integrator, INTEGRATORS)}",
         )
     if task.algo not in ALGORITHMS:
         raise _fail(
@@ -332,7 +333,8 @@ def check_with_model(plant) -> None:
                 raise _fail(
                     name,
                     f"start[{k!r}]",
-                    f"= ({lo:.6g}, {hi:.6g}) reaches beyond `limits[{k!r}]` = {plant.limits[i]:.6g}: every such episode would diverge at once.",
+                    f"= ({lo:.6g}, {hi:.6g}) reaches beyond `limits[{k!r}]` = "
+                    f"{plant.limits[i]:.6g}: every such episode would diverge at once.",
                 )
     for j, g in enumerate(task.goal):
         lo, hi = plant.goal_low[j], plant.goal_high[j]
@@ -351,12 +353,13 @@ def check_with_model(plant) -> None:
         raise _fail(
             name,
             "terms",
-            f"{bad} need finite bounds: they decide the early-end penalty, which would be infinite.",
+            f"{bad} need finite bounds: they decide the early-end penalty, which would be "
+            f"infinite.",
         )
     if not (plant.term_low <= plant.term_high).all():
         bad = [t.name for t, lo, hi in zip(task.terms, plant.term_low, plant.term_high) if lo > hi]
         raise _fail(name, "terms", f"{bad}: low bound above high.")
-    for f, (label, lo, hi, _) in zip(task.observation, plant.columns):
+    for label, lo, hi, _ in plant.columns:
         if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
             raise _fail(
                 name,
@@ -381,7 +384,8 @@ def _check_inputs(plant) -> None:
             raise _fail(
                 task.name,
                 "actuated",
-                f"drives {task.actuated[k]!r}, which appears in no generalised force of {system.name}: the action would do nothing.",
+                f"drives {task.actuated[k]!r}, which appears in no generalised force of "
+                f"{system.name}: the action would do nothing.",
             )
 
 
@@ -408,7 +412,9 @@ def check_equilibrium(plant, x0: np.ndarray, u0: np.ndarray) -> None:
         raise _fail(
             name,
             "operating_point",
-            f"is no equilibrium: the best inputs within reach leave accelerations of up to {worst:.3g} (in units of the state's rates per second) at x0 = {np.round(x0, 6).tolist()}.",
+            f"is no equilibrium: the best inputs within reach leave accelerations of up to "
+            f"{worst:.3g} (in units of the state's rates per second) at x0 = "
+            f"{np.round(x0, 6).tolist()}.",
         )
     low, high = plant.input_low, plant.input_high
     ua = u0[..., plant.actuated]
@@ -418,7 +424,8 @@ def check_equilibrium(plant, x0: np.ndarray, u0: np.ndarray) -> None:
         raise _fail(
             name,
             "operating_point",
-            f"needs input {plant.task.actuated[k]!r} = {float(np.ravel(ua[..., k])[0]):.6g}, outside its limits [{low[k]:.6g}, {high[k]:.6g}].",
+            f"needs input {plant.task.actuated[k]!r} = {float(np.ravel(ua[..., k])[0]):.6g}, "
+            f"outside its limits [{low[k]:.6g}, {high[k]:.6g}].",
         )
 
 
@@ -440,7 +447,8 @@ def _call(task_name: str, label: str, fn: Callable, args):
     except ValueError as exc:
         if "read-only" in str(exc):
             raise DeclarationError(
-                f"Task {task_name!r}: {label} writes into its inputs ({exc}); compute new arrays instead (`err = x - 0.5`, not `err -= 0.5` on a column)."
+                f"Task {task_name!r}: {label} writes into its inputs ({exc}); compute new "
+                f"arrays instead (`err = x - 0.5`, not `err -= 0.5` on a column)."
             ) from None
         raise DeclarationError(f"Task {task_name!r}: {label} fails on sample rows: {exc}") from exc
     except Exception as exc:
@@ -455,12 +463,14 @@ def _column(task_name: str, label: str, value, n: int, kind: str) -> np.ndarray:
         v = np.broadcast_to(v, (n,))
     if v.shape != (n,):
         raise DeclarationError(
-            f"Task {task_name!r}: {label} must give one value per row, shape ({n},); got shape {v.shape}."
+            f"Task {task_name!r}: {label} must give one value per row, shape ({n},); got shape "
+            f"{v.shape}."
         )
     if kind == "bool":
         if v.dtype != np.bool_:
             raise DeclarationError(
-                f"Task {task_name!r}: {label} must give booleans (a comparison), got dtype {v.dtype}."
+                f"Task {task_name!r}: {label} must give booleans (a comparison), got dtype "
+                f"{v.dtype}."
             )
         return v
     if v.dtype.kind not in "fiu":
@@ -469,7 +479,8 @@ def _column(task_name: str, label: str, value, n: int, kind: str) -> np.ndarray:
         )
     if not np.isfinite(v).all():
         raise DeclarationError(
-            f"Task {task_name!r}: {label} gives NaN or inf on sample rows (row {int(np.flatnonzero(~np.isfinite(v))[0])})."
+            f"Task {task_name!r}: {label} gives NaN or inf on sample rows (row "
+            f"{int(np.flatnonzero(~np.isfinite(v))[0])})."
         )
     return v
 
@@ -492,7 +503,8 @@ def trial_run(plant, functions) -> None:
             if not isinstance(out, (tuple, list)) or len(out) != len(terms):
                 got = len(out) if isinstance(out, (tuple, list)) else type(out).__name__
                 raise DeclarationError(
-                    f"Task {name!r}: {label} must return {len(terms)} terms {tuple(t.name for t in terms)} as a tuple, got {got}."
+                    f"Task {name!r}: {label} must return {len(terms)} terms "
+                    f"{tuple(t.name for t in terms)} as a tuple, got {got}."
                 )
             for t, v in zip(terms, out):
                 _column(name, f"{label} term {t.name!r}", v, n, "real")

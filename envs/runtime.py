@@ -281,7 +281,8 @@ class Runtime:
         floats = [(name.lstrip("_"), start, w) for name, start, w in self._segments()]
         bools = [(name.lstrip("_"), k) for k, name in enumerate(self._bools)]
         h = self.control_period / self.substeps
-        real = [("input_mid", lay.input_mid), ("input_half", lay.input_half), ("limits", lay.limits), ("obs_low", lay.obs_low),
+        real = [("input_mid", lay.input_mid), ("input_half", lay.input_half),
+                ("limits", lay.limits), ("obs_low", lay.obs_low),
                 ("obs_high", lay.obs_high), ("term_low", lay.term_low),
                 ("term_high", lay.term_high), ("ta", a), ("tw", w), ("tc", c), ("h", h),
                 ("dt", self.control_period), ("lowest", self._lowest)]  # fmt: skip
