@@ -6,6 +6,7 @@ template and is never imported by itself. Everything is batched over a leading a
 allocates its work arrays once per call. No kernel raises on bad values (division by zero
 follows numpy's rules): a row whose result is undefined comes back NaN, for the caller to see.
 """
+
 # ruff: noqa: F821, E501
 # --- template starts here ---
 import llvmlite.binding  # noqa: E402
