@@ -1,7 +1,9 @@
 """Code generation: derived equations -> a Python module of numba kernels.
 
-Each group of expressions is reduced by sympy's common-subexpression elimination and printed
-as straight-line scalar code (`math` functions) that writes into output arrays. The fixed
+All of a model's expressions are reduced together by sympy's common-subexpression
+elimination (`program.Program`) and each kernel prints, as straight-line scalar code (`math`
+functions) that writes into output arrays, the assignments its own results need; the
+linearisation's Jacobians are differentiated through the same assignments. The fixed
 kernels in `kernels.py` (linear solve, right-hand side, batched RK4 with constraint
 projection, batched energy...) are appended to the same module so that numba's on-disk cache
 can hold the whole model. See benchmarks/dynamics.py for why numba and not numpy or C.
@@ -12,12 +14,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import sympy as sp
-import sympy.physics.mechanics as me
-from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pycode import PythonCodePrinter
 
 from .derive import Derived
-from .spec import t
+from .program import Program
 
 KERNELS = Path(__file__).with_name("kernels.py")
 
@@ -46,52 +46,37 @@ class _LanePrinter(_Printer):
         return super()._print_Pow(expr, rational)
 
 
-class _VectorPrinter(NumPyPrinter):
-    def _print_Symbol(self, expr):
-        return expr.name
-
-
-def _vectorized(targets_count: int, exprs: list, header: list[str]) -> str:
-    """`kkt_columns(t, x, u, p)`: the entries of the KKT matrix and right-hand side as numpy
-    expressions over columns (x has shape (2n, N)); constant entries stay Python floats."""
-    printer = _VectorPrinter({"fully_qualified_modules": True})
-    lines = ["", "", "def kkt_columns(t, x, u, p):"]
-    lines += ["    " + h for h in header]
-    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c"), optimizations="basic")
-    for sym, sub in repl:
-        lines.append(f"    {sym} = {printer.doprint(sub)}")
-    entries = [printer.doprint(e) if not e.is_number else repr(float(e)) for e in reduced]
-    lines.append(f"    A = ({', '.join(entries[:targets_count])},)")
-    lines.append(f"    r = ({', '.join(entries[targets_count:])},)")
-    lines.append("    return A, r")
-    return "\n".join(lines)
-
-
 def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
-    """Straight-line Gaussian elimination without pivoting of the KKT system a z = r held in
-    scalars a{i}_{j}, r{i}, skipping structural zeros: valid for the mass/constraint matrix
-    in its natural order (M positive definite, -B M^-1 B^T negative definite), as in
-    `System._derivative_columns`. A pivot below PIVOT_TOL times the largest entry of its
-    original row (singular to working precision) becomes NaN, so the row's result is NaN."""
+    """Straight-line symmetric Gaussian elimination without pivoting (LDL^T order) of the
+    KKT system a z = r held in scalars a{i}_{j} (upper triangle, j >= i) and r{i}, skipping
+    structural zeros: valid for the mass/constraint matrix in its natural order, which is
+    symmetric and stays so under elimination (M positive definite, then -B M^-1 B^T negative
+    definite), so only the upper triangle is updated, half the work of a general
+    elimination. A pivot below PIVOT_TOL times the largest entry of its original row
+    (singular to working precision) becomes NaN, so the row's result is NaN."""
     nz = [list(row) for row in nonzero]
+
+    def a(i, j):
+        return f"a{min(i, j)}_{max(i, j)}"
+
     lines = []
     for i in range(k):
-        terms = [f"abs(a{i}_{j})" for j in range(k) if nz[i][j]] or ["0.0"]
+        terms = [f"abs({a(i, j)})" for j in range(k) if nz[i][j]] or ["0.0"]
         lines.append(f"s{i} = " + (terms[0] if len(terms) == 1 else f"max({', '.join(terms)})"))
     for c in range(k):
         lines.append(f"a{c}_{c} = a{c}_{c} if abs(a{c}_{c}) > PIVOT_TOL * s{c} else math.nan")
         for i in range(c + 1, k):
-            if not nz[i][c]:
+            if not nz[c][i]:
                 continue
-            lines.append(f"f = a{i}_{c} / a{c}_{c}")
-            for j in range(c + 1, k):
+            lines.append(f"f = a{c}_{i} / a{c}_{c}")
+            for j in range(i, k):
                 if nz[c][j]:
                     lines.append(
                         f"a{i}_{j} = a{i}_{j} - f * a{c}_{j}"
                         if nz[i][j]
                         else f"a{i}_{j} = -f * a{c}_{j}"
                     )
-                    nz[i][j] = True
+                    nz[i][j] = nz[j][i] = True
             lines.append(f"r{i} = r{i} - f * r{c}")
     for c in range(k - 1, -1, -1):
         rest = "".join(f" - a{c}_{j} * z{j}" for j in range(c + 1, k) if nz[c][j])
@@ -99,23 +84,25 @@ def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
     return lines
 
 
-def _lanes(n: int, nu: int, kkt: sp.Matrix, rhs: sp.Matrix, header: list[str]) -> str:
+def _lanes(n: int, nu: int, prog: Program, header: list[str]) -> str:
     """`derivative_lanes(T, XS, U, p, D)`: D = dx/dt for rows held as columns (XS (2n, m),
     U (n_u, m), T (m,)), one straight-line body per row with no calls, so that LLVM
     evaluates several rows per instruction. The kernels' fixed-step integrators use it."""
-    k = kkt.shape[0]
+    matrix, rhs = prog.results["kkt"], prog.results["rhs"]
+    k = len(rhs)
     printer = _LanePrinter({"fully_qualified_modules": True})
-    nonzero = [[not (kkt[i, j].is_number and kkt[i, j] == 0) for j in range(k)] for i in range(k)]
-    exprs = [kkt[i, j] for i in range(k) for j in range(k) if nonzero[i][j]] + list(rhs)
-    names = [f"a{i}_{j}" for i in range(k) for j in range(k) if nonzero[i][j]]
+    kkt = [[matrix[i * k + j] for j in range(k)] for i in range(k)]
+    nonzero = [[not (kkt[i][j].is_number and kkt[i][j] == 0) for j in range(k)] for i in range(k)]
+    upper = [(i, j) for i in range(k) for j in range(i, k)]  # the matrix is symmetric
+    exprs = [kkt[i][j] for i, j in upper if nonzero[i][j]] + list(rhs)
+    names = [f"a{i}_{j}" for i, j in upper if nonzero[i][j]]
     names += [f"r{i}" for i in range(k)]
     body = ["t = T[b]"]
     body += [f"q{i} = XS[{i}, b]" for i in range(n)] + [f"qd{i} = XS[{n + i}, b]" for i in range(n)]
     body += [f"u{j} = U[{j}, b]" for j in range(nu)]
-    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c"), optimizations="basic")
-    body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in repl]
-    body += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, reduced)]
-    body += [f"a{i}_{j} = 0.0" for i in range(k) for j in range(k) if not nonzero[i][j]]
+    body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in prog.needed(exprs)]
+    body += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, exprs)]
+    body += [f"a{i}_{j} = 0.0" for i, j in upper if not nonzero[i][j]]
     body += _solve_lines(k, nonzero)
     body += [f"D[{i}, b] = qd{i}" for i in range(n)] + [f"D[{n + i}, b] = z{i}" for i in range(n)]
     lines = [
@@ -131,44 +118,27 @@ def _lanes(n: int, nu: int, kkt: sp.Matrix, rhs: sp.Matrix, header: list[str]) -
 
 
 def _plain_symbols(d: Derived):
-    """Map dynamicsymbols, multipliers, inputs and parameters to generated names."""
-    spec = d.spec
-    q = list(spec.coordinates)
-    n = len(q)
-    subs = {}
-    for i, qi in enumerate(q):
-        subs[qi.diff(t, 2)] = sp.Symbol(f"qdd{i}")
-    for i, qi in enumerate(q):
-        subs[qi.diff(t)] = sp.Symbol(f"qd{i}")
-    for i, qi in enumerate(q):
-        subs[qi] = sp.Symbol(f"q{i}")
-    plain = {t: sp.Symbol("t")}
-    plain |= {lam: sp.Symbol(f"lam{r}") for r, lam in enumerate(d.multipliers)}
-    plain |= {u: sp.Symbol(f"u{j}") for j, u in enumerate(spec.inputs)}
-    plain |= {p: sp.Symbol(f"p{k}") for k, p in enumerate(spec.parameters)}
+    """(convert, x, z, u): a map from the spec's parameters and inputs to the generated
+    names, and the plain state, acceleration/multiplier and input symbols of `d.code`."""
+    spec, c = d.spec, d.code
+    plain = dict(zip(spec.parameters, c.p)) | dict(zip(spec.inputs, c.u))
 
     def convert(expr):
-        return sp.sympify(me.msubs(sp.sympify(expr), subs)).xreplace(plain)
+        return sp.sympify(expr).xreplace(plain)
 
-    x = [sp.Symbol(f"q{i}") for i in range(n)] + [sp.Symbol(f"qd{i}") for i in range(n)]
-    z = [sp.Symbol(f"qdd{i}") for i in range(n)] + [
-        sp.Symbol(f"lam{r}") for r in range(len(d.multipliers))
-    ]
-    u = [sp.Symbol(f"u{j}") for j in range(len(spec.inputs))]
-    return convert, x, z, u
+    return convert, list(c.x), list(c.z), list(c.u)
 
 
-def _function(name: str, args: str, targets: list[str], exprs: list, header: list[str]) -> str:
-    """One njit kernel: unpack arguments, cse, assign each target."""
+def _function(
+    name: str, args: str, targets: list[str], exprs: list, header: list[str], steps: list
+) -> str:
+    """One njit kernel: unpack arguments, run `steps` [(symbol, expression)], assign each
+    target its expression."""
     printer = _Printer({"fully_qualified_modules": True})
     lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def {name}({args}):"]
     lines += ["    " + h for h in header]
-    if exprs:
-        repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c"), optimizations="basic")
-        for sym, sub in repl:
-            lines.append(f"    {sym} = {printer.doprint(sub)}")
-        for target, e in zip(targets, reduced):
-            lines.append(f"    {target} = {printer.doprint(e)}")
+    lines += [f"    {sym} = {printer.doprint(sub)}" for sym, sub in steps]
+    lines += [f"    {target} = {printer.doprint(e)}" for target, e in zip(targets, exprs)]
     lines.append("    return")
     return "\n".join(lines)
 
@@ -185,28 +155,41 @@ def generate(d: Derived, key: str) -> str:
     unpack_p = [f"p{k} = p[{k}]" for k in range(len(spec.parameters))]
     unpack_z = [f"qdd{i} = z[{i}]" for i in range(n)] + [f"lam{r} = z[{n + r}]" for r in range(m)]
 
-    M = d.mass.applyfunc(convert)
-    B = d.constraint_matrix.applyfunc(convert)
-    F = d.forcing.applyfunc(convert)
-    gamma = d.constraint_accel.applyfunc(convert)
+    code = d.code
+    M, B, F, gamma = code.mass, code.constraint_matrix, code.forcing, code.constraint_accel
     kkt = sp.zeros(K, K)
     kkt[:n, :n] = M
     if m:
         kkt[:n, n:] = B.T
         kkt[n:, :n] = B
     rhs = sp.Matrix.vstack(F, gamma) if m else F
+    residual = (B * sp.Matrix(x[n:]) + code.constraint_bias) if m else sp.zeros(0, 1)
+    prog = Program(
+        {
+            "kkt": [kkt[i, j] for i in range(K) for j in range(K)],
+            "rhs": list(rhs),
+            "energy": [code.kinetic, code.potential],
+            "residual": list(residual),
+            "power": [code.power],
+            "outputs": list(code.outputs.values()),
+        }
+    )
+    res = prog.results
     matrix_targets = [f"A[{i}, {j}]" for i in range(K) for j in range(K)]
-    matrix_exprs = [kkt[i, j] for i in range(K) for j in range(K)]
     rhs_targets = [f"r[{i}]" for i in range(K)]
 
     # residual R(x, u, z) = kkt(x) z - rhs(x, u): its Jacobians give exact linearisations
-    R = kkt * sp.Matrix(z) - rhs
-    Jx, Ju = R.jacobian(x), R.jacobian(u) if nu else sp.zeros(K, 0)
+    R = [
+        sp.Add(*[res["kkt"][i * K + j] * z[j] for j in range(K)]) - res["rhs"][i] for i in range(K)
+    ]
+    jac_steps, J = prog.derivatives(R, list(x) + list(u))
+    jac_exprs = [J[i][j] for i in range(K) for j in range(2 * n)]
+    jac_exprs += [J[i][2 * n + j] for i in range(K) for j in range(nu)]
 
-    residual = (
-        (B * sp.Matrix(x[n:]) + d.constraint_bias.applyfunc(convert)) if m else sp.zeros(0, 1)
-    )
-    outputs = [convert(e) for e in d.outputs.values()]
+    def kernel(name, args, targets, exprs, header, extra=()):
+        extra = list(extra)
+        steps = prog.needed(list(exprs) + [e for _, e in extra])
+        return _function(name, args, targets, exprs, header, steps + extra)
 
     head = [
         f'"""Generated by lagrange-gym from {spec.name!r}. Do not edit; delete to rebuild."""',
@@ -224,57 +207,52 @@ def generate(d: Derived, key: str) -> str:
         f"DEFAULTS = {tuple(float(p.default) for p in spec.parameters.values())!r}",
         f"UNITS = {tuple(p.unit for p in spec.parameters.values())!r}",
         f"POSITIVE = {tuple(bool(p.positive) for p in spec.parameters.values())!r}",
-        f"OUTPUTS = {tuple(d.outputs)!r}",
+        f"OUTPUTS = {tuple(code.outputs)!r}",
         f"N_Q = {n}",
         f"N_U = {nu}",
         f"N_C = {m}",
         f"N_P = {len(spec.parameters)}",
-        f"N_OUT = {len(outputs)}",
+        f"N_OUT = {len(code.outputs)}",
         f"K = {K}",
     ]
     x_args = unpack_x + unpack_p
+    x_zu = x_args + unpack_u + unpack_z
     parts = [
         "\n".join(head),
-        _function(
+        kernel(
             "kkt",
             "t, x, u, p, A, r",
             matrix_targets + rhs_targets,
-            matrix_exprs + list(rhs),
+            res["kkt"] + res["rhs"],
             x_args + unpack_u,
         ),
-        _function("kkt_matrix", "t, x, p, A", matrix_targets, matrix_exprs, x_args),
-        _function(
-            "energy_terms",
-            "t, x, p, out",
-            ["out[0]", "out[1]"],
-            [convert(d.kinetic), convert(d.potential)],
-            x_args,
+        kernel("kkt_matrix", "t, x, p, A", matrix_targets, res["kkt"], x_args),
+        kernel("energy_terms", "t, x, p, out", ["out[0]", "out[1]"], res["energy"], x_args),
+        kernel(
+            "residual", "t, x, p, out", [f"out[{r}]" for r in range(m)], res["residual"], x_args
         ),
-        _function(
-            "residual", "t, x, p, out", [f"out[{r}]" for r in range(m)], list(residual), x_args
-        ),
-        _function(
+        kernel(
             "power_out",
             "t, x, u, p, z, out",
             ["out[0]"],
-            [convert(d.power)],
+            res["power"],
             x_args + unpack_u + unpack_z,
         ),
-        _function(
+        kernel(
             "outputs",
             "t, x, u, p, z, out",
-            [f"out[{k}]" for k in range(len(outputs))],
-            outputs,
-            x_args + unpack_u + unpack_z,
+            [f"out[{k}]" for k in range(len(code.outputs))],
+            res["outputs"],
+            x_zu,
         ),
-        _function(
+        kernel(
             "jacobians",
             "t, x, u, p, z, Jx, Ju",
             [f"Jx[{i}, {j}]" for i in range(K) for j in range(2 * n)]
             + [f"Ju[{i}, {j}]" for i in range(K) for j in range(nu)],
-            [Jx[i, j] for i in range(K) for j in range(2 * n)]
-            + [Ju[i, j] for i in range(K) for j in range(nu)],
-            x_args + unpack_u + unpack_z,
+            jac_exprs,
+            x_zu,
+            jac_steps,
         ),
     ]
     printer = _Printer({"fully_qualified_modules": True})
@@ -294,7 +272,6 @@ def generate(d: Derived, key: str) -> str:
             ]
         )
     )
-    parts.append(_vectorized(len(matrix_exprs), matrix_exprs + list(rhs), x_args + unpack_u))
-    parts.append(_lanes(n, nu, kkt, rhs, unpack_p))
+    parts.append(_lanes(n, nu, prog, unpack_p))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

@@ -40,7 +40,7 @@ def register(name: str, target: str) -> None:
     _REGISTRY[name] = target
 
 
-_CORE = ("spec.py", "derive.py", "codegen.py", "kernels.py")
+_CORE = ("spec.py", "calculus.py", "derive.py", "program.py", "codegen.py", "kernels.py")
 
 
 @cache

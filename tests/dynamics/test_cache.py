@@ -297,3 +297,45 @@ def test_a_cache_others_can_write_is_bypassed_with_a_warning(tmp_path, monkeypat
         module = cache.load("toy", key, body)
     assert module.VALUE == 1
     assert not list(root.iterdir())  # nothing written to, or run from, the shared directory
+
+
+def test_cache_key_hashes_every_module_that_derives_or_generates_code():
+    """A stale cache must never serve old code: each module imported by the derivation or
+    the code generator (transitively, within the package) is hashed into every key."""
+    import ast
+
+    from dynamics import model
+
+    root = Path(model.__file__).parent
+    seen, todo = set(), ["codegen.py"]
+    while todo:
+        name = todo.pop()
+        seen.add(name)
+        tree = ast.parse((root / name).read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+                dep = node.module.split(".")[0] + ".py"
+                if dep not in seen:
+                    todo.append(dep)
+    assert seen <= set(model._CORE), f"not in the cache key: {sorted(seen - set(model._CORE))}"
+    assert "kernels.py" in model._CORE  # the template appended to every module
+
+
+def test_cache_key_changes_with_the_code_generator(monkeypatch):
+    from dynamics import model
+
+    key = dynamics.get_model("two_link_arm").key
+    real = Path.read_bytes
+
+    def edited(path):
+        data = real(path)
+        return data + b"\n# edited\n" if path.name == "program.py" else data
+
+    model._code_fingerprint.cache_clear()
+    monkeypatch.setattr(Path, "read_bytes", edited)
+    try:
+        assert dynamics.get_model("two_link_arm").key != key
+    finally:
+        monkeypatch.undo()
+        model._code_fingerprint.cache_clear()
+    assert dynamics.get_model("two_link_arm").key == key
