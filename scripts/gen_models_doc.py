@@ -126,17 +126,18 @@ SKETCHES = {
 }
 
 
-def model_section(name: str, image: str | None) -> str:
-    """The Markdown section of one model."""
+def model_section(name: str, image: str | None, level: int = 2, images: str = "img/") -> str:
+    """The Markdown section of one model (its heading at `level`, schematics under `images`;
+    the documentation site's model pages start from it too)."""
     from sympy.physics.vector.printing import vlatex
 
     model = dynamics.get_model(name)
     spec, derived = model.spec, model.derived
-    lines = [f"## `{name}`", ""]
+    lines = [f"{'#' * level} `{name}`", ""]
     doc = inspect.cleandoc(spec.description or "").splitlines()
     lines += ["```text", *[line.rstrip() for line in doc], "```", ""]
     if image:
-        lines += [f"![{name}](img/{image})", ""]
+        lines += [f"![{name}]({images}{image})", ""]
     lines.append(f"Coordinates: {', '.join(f'`{c}`' for c in model.coordinates)}.  ")
     lines.append(f"Inputs: {', '.join(f'`{u}`' for u in model.inputs) or 'none'}.")
     lines += ["", "| parameter | default | unit | meaning |", "|---|---|---|---|"]
