@@ -364,25 +364,24 @@ def env_page(env_id: str, anim: dict) -> str:
         f"{anim['seed']})</code>, first {anim['shown_s']:.1f} s: {outcome}.</figcaption>\n"
         "</figure>",
         "",
-        "| | |",
-        "|---|---|",
-        f"| Make | `gymnasium.make(\"{env_id}\")` |",
-        f"| Action space | `{facts['action_space']}` |",
-        f"| Observation space | `Box(low, high, {obs.shape}, {obs.dtype})` (table below) |",
-        f"| Episode limit | {facts['max_episode_steps']} steps of {facts['control_period']:g} s "
-        f"({seconds:g} s) |",
-        "| Model | " + (f"[`{model}`](../models/{model}.md)" if model else "unregistered") + " |",
-        f"| Declared in | `{module}` (the task), entry point `{spec.entry_point}`, vector "
-        f"entry point `{spec.vector_entry_point}` |",
-        "| Versions | " + ", ".join(
-            f"**{v}**" if v == env_id else f"[{v}]({slug(v)}.md)" for v in versions) + " |",
+        f"- **Make**: `gymnasium.make(\"{env_id}\")`",
+        f"- **Action space**: `{facts['action_space']}`",
+        f"- **Observation space**: `Box(low, high, {obs.shape}, {obs.dtype})` (table below)",
+        f"- **Episode limit**: {facts['max_episode_steps']} steps of "
+        f"{facts['control_period']:g} s ({seconds:g} s)",
+        "- **Model**: " + (f"[`{model}`](../models/{model}.md)" if model else "unregistered"),
+        f"- **Declared in**: `{module}`; entry points `{spec.entry_point}` and "
+        f"`{spec.vector_entry_point}` (vector)",
+        "- **Versions**: " + ", ".join(
+            f"**{v}**" if v == env_id else f"[{v}]({slug(v)}.md)" for v in versions),
         "",
         "```python",
         "import gymnasium as gym",
         "import envs  # registers the Lagrange namespace",
         "",
         f'env = gym.make("{env_id}", render_mode="rgb_array")',
-        f'vec = gym.make_vec("{env_id}", num_envs=1024, vectorization_mode="vector_entry_point")',
+        f'vec = gym.make_vec("{env_id}", num_envs=1024,',
+        '                   vectorization_mode="vector_entry_point")',
         f'env = gym.make("envs:{env_id}")  # or let Gymnasium import the package',
         "```",
         "",
@@ -429,7 +428,8 @@ def model_page(name: str) -> str:
     model = dynamics.get_model(name)
     spec = model.spec
     image = f"{name}.png" if (DOCS / "img" / f"{name}.png").exists() else None
-    lines = [model_section(name, image, level=1, images="../img/")]
+    section = model_section(name, image, level=1, images="../img/")
+    lines = [re.sub(r"\$\$\n\$\$", "$$\n\n$$", section)]  # one display block each
     lines += [
         "## Energies and forces",
         "",
@@ -440,13 +440,13 @@ def model_page(name: str) -> str:
     ]
     if spec.forces:
         lines += ["Generalised (non-conservative) forces:", ""]
-        lines += [f"$$ Q_{{{vlatex(q)}}} = {vlatex(f)} $$" for q, f in spec.forces.items()]
+        lines += [f"$$ Q_{{{vlatex(q)}}} = {vlatex(f)} $$\n" for q, f in spec.forces.items()]
     else:
         lines.append("No non-conservative generalised forces.")
     lines.append("")
     if spec.prescribed:
         lines += ["Prescribed (rheonomic) coordinates:", ""]
-        lines += [f"$$ {vlatex(q)} = {vlatex(f)} $$" for q, f in spec.prescribed.items()]
+        lines += [f"$$ {vlatex(q)} = {vlatex(f)} $$\n" for q, f in spec.prescribed.items()]
         lines.append("")
     on_it = [i for i in env_ids() if model_name(task_of(i)) == name]
     if on_it:
@@ -624,14 +624,11 @@ def on_page_markdown(markdown, page, config, files):
     if page.file.src_uri != "index.md":
         return markdown
     cells = [
-        f"[![{i}](assets/envs/{slug(i)}.gif){{ width=\"200\" }}<br>{i}](envs/{slug(i)}.md)"
+        f'<a class="env-card" href="envs/{slug(i)}/"><img src="assets/envs/{slug(i)}.gif" '
+        f'alt="{i}" width="200"><span>{i}</span></a>'
         for i in env_ids()
     ]
-    rows = [cells[k : k + 3] for k in range(0, len(cells), 3)]
-    table = "\n".join(
-        ["| | | |", "|:-:|:-:|:-:|"] + ["| " + " | ".join(r + [""] * (3 - len(r))) + " |"
-                                     for r in rows]
-    )
+    table = '<div class="env-gallery">\n' + "\n".join(cells) + "\n</div>"
     return markdown.replace("<!-- gallery -->", table)
 
 

@@ -1,0 +1,69 @@
+"""The documentation site builds with warnings as errors, and its generated pages cover the
+registry: every Lagrange id (every version) has a page with its animation and its spaces'
+tables, every model a page with its derived equations."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from html import unescape
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import dynamics
+import envs  # noqa: F401  (registers the Lagrange namespace)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("material")
+    out = tmp_path_factory.mktemp("site")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NO_MKDOCS_2_WARNING": "1"}
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(out)],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=900,
+    )
+    assert done.returncode == 0, done.stderr[-4000:]
+    return out
+
+
+def _page(site: Path, path: str) -> str:
+    page = site / path / "index.html"
+    assert page.exists(), f"no page {path}"
+    return page.read_text(encoding="utf-8")
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_every_registered_id_has_a_page_with_its_animation_and_spaces(site):
+    ids = [k for k in gym.registry if k.startswith("Lagrange/")]
+    assert set(envs.ENV_IDS) <= set(ids) and "Lagrange/Acrobot-v1" in ids  # older versions too
+    for env_id in ids:
+        slug = env_id.replace("/", "-")
+        html = _page(site, f"envs/{slug}")
+        assert re.search(rf'<img[^>]+src="[./]*assets/envs/{slug}\.gif"', html), env_id
+        assert (site / "assets" / "envs" / f"{slug}.gif").stat().st_size > 1000
+        assert "<th>Input</th>" in html and "<th>Observation</th>" in html, env_id
+        obs = gym.spec(env_id).make().observation_space.shape[0]
+        assert f"<td>{obs - 1}</td>" in html  # the observation table's last row
+        text = unescape(re.sub(r"<[^>]+>", "", html))
+        assert f'env = gym.make("{env_id}"' in text, env_id  # how to make it
+        assert f"{slug}/" in _page(site, "envs")  # listed on the index
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_every_model_has_a_page_with_its_equations(site):
+    for name in dynamics.list_models():
+        html = _page(site, f"models/{name}")
+        blocks = re.findall(r'<div class="arithmatex">\\\[(.*?)\\\]</div>', html, re.S)
+        coordinates = dynamics.get_model(name).coordinates
+        equations = [b for b in blocks if b.strip().endswith("= 0")]
+        assert len(equations) >= len(coordinates), name  # one equation of motion each
+        assert any(b.strip().startswith("T =") for b in blocks), name
+        assert any(b.strip().startswith("V =") for b in blocks), name
