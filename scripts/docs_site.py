@@ -104,16 +104,16 @@ def documented(task) -> tuple[str, str]:
 
 # ---- Markdown helpers --------------------------------------------------------------------
 def escape_text(markdown: str) -> str:
-    """Docstring prose as Markdown: outside code, '*' (N*m, theta1*) is literal."""
-    out, fenced = [], False
-    for line in markdown.splitlines():
-        if line.lstrip().startswith("```"):
-            fenced = not fenced
-        elif not fenced:
-            parts = line.split("`")
-            line = "`".join(p if i % 2 else p.replace("*", r"\*") for i, p in enumerate(parts))
-        out.append(line)
-    return "\n".join(out)
+    """Docstring prose as Markdown: outside code, a '*' (N*m, theta1*) is literal unless it
+    marks a list item; code spans may run over line ends, fenced blocks are left alone."""
+    chunks = re.split(r"(^```.*?^```[^\n]*$)", markdown, flags=re.S | re.M)
+    for k in range(0, len(chunks), 2):  # the even chunks are outside fenced blocks
+        parts = chunks[k].split("`")
+        for i in range(0, len(parts), 2):  # the even parts are outside code spans
+            parts[i] = parts[i].replace("*", r"\*")
+            parts[i] = re.sub(r"^(\s*)\\\*(?= )", r"\1*", parts[i], flags=re.M)
+        chunks[k] = "`".join(parts)
+    return "".join(chunks)
 
 
 def sections(doc: str) -> tuple[str, dict[str, str]]:
@@ -462,38 +462,47 @@ def model_page(name: str) -> str:
         lines += [
             "From [the errata](../errata.md): the entries whose tests derive this model.",
             "",
-            "| # | Where | Printed | Right | Test |",
-            "|---|---|---|---|---|",
             *found,
-            "",
         ]
     else:
         lines += ["None of [the errata](../errata.md) is checked on this model.", ""]
     return "\n".join(lines)
 
 
-def _test_source(ref: str) -> str:
+def _test_source(ref: str, names: list[str]) -> str:
+    """The source of test `path::function`, or its whole file when the function reaches the
+    model through a fixture (names no model itself)."""
     path, _, func = ref.partition("::")
     source = (ROOT / path).read_text(encoding="utf-8")
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.FunctionDef) and node.name == func:
-            return ast.get_source_segment(source, node) or source
+            segment = ast.get_source_segment(source, node) or ""
+            if any(f'"{n}"' in segment or f"'{n}'" in segment for n in names):
+                return segment
     return source
 
 
 def errata_of(name: str) -> list[str]:
-    """Rows of docs/errata.md's tables that name `name` or whose tests use it."""
-    rows = []
+    """The tables of docs/errata.md cut to the rows that name `name` or whose tests derive
+    it (each table keeps its own header)."""
+    names = model_names()
+    tables: dict[str, list[str]] = {}
+    header = None
     for line in (DOCS / "errata.md").read_text(encoding="utf-8").splitlines():
-        if not line.startswith("| ") or line.startswith(("| #", "|---")):
+        if line.startswith("| #"):
+            header = line
+            continue
+        if header is None or not line.startswith("| ") or line.startswith("|---"):
             continue
         refs = re.findall(r"tests/[\w/]+\.py(?:::\w+)?", line)
-        sources = [_test_source(r) for r in refs if (ROOT / r.split("::")[0]).exists()]
+        sources = [_test_source(r, names) for r in refs if (ROOT / r.split("::")[0]).exists()]
         quoted = [f'"{name}"', f"'{name}'"]
-        if f"`{name}`" in line or any(q in s for s in sources for q in quoted):
-            cells = line.strip().strip("|").split("|")
-            rows.append("| " + " | ".join(c.strip() for c in cells[:5]) + " |")
-    return rows
+        if f"`{name}`" in line or any(q in src for src in sources for q in quoted):
+            tables.setdefault(header, []).append(line)
+    out = []
+    for head, rows in tables.items():
+        out += [head, "|" + "---|" * (head.count("|") - 1), *rows, ""]
+    return out
 
 
 def envs_index(anims: dict[str, dict]) -> str:
