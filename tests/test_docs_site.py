@@ -67,3 +67,39 @@ def test_every_model_has_a_page_with_its_equations(site):
         assert len(equations) >= len(coordinates), name  # one equation of motion each
         assert any(b.strip().startswith("T =") for b in blocks), name
         assert any(b.strip().startswith("V =") for b in blocks), name
+
+
+def _generator():
+    """scripts/docs_site.py, the site's page generator (mkdocs runs it as its hooks)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_site", ROOT / "scripts" / "docs_site.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_docstring_prose_keeps_asterisks_literal_outside_code_and_list_markers():
+    text = "3 N*m, phi*.\n* v2: `make(x,\n**kw)` 2 N*m\n```\na*b\n```\n"
+    assert _generator().escape_text(text) == (
+        "3 N\\*m, phi\\*.\n* v2: `make(x,\n**kw)` 2 N\\*m\n```\na*b\n```\n"
+    )
+
+
+def test_a_models_errata_are_the_rows_whose_tests_derive_it():
+    rows = _generator().errata_of("two_link_arm")
+    numbers = [r.split("|")[1].strip() for r in rows if r.startswith("| ") and "| #" not in r]
+    # 6: (7.25)'s Q1 (its test reaches the arm through a fixture); 14: the notation clash
+    assert numbers == ["6", "14"]
+    assert rows[0].startswith("| # | Where | Printed |")  # each table keeps its header
+
+
+def test_every_registered_id_and_model_is_in_the_navigation():
+    site = _generator()
+    config = site.on_config({})
+    listed = str(config["nav"])
+    for env_id in gym.registry:
+        if env_id.startswith("Lagrange/"):
+            assert f"envs/{env_id.replace('/', '-')}.md" in listed
+    for name in dynamics.list_models():
+        assert f"models/{name}.md" in listed
