@@ -158,15 +158,24 @@ def results_table(rows: list[dict], with_env: bool = False) -> str:
     def pct(r, key):
         return f"{float(r[key]):.0%}"
 
-    head = ["agent", "success [95 % CI]", "return [95 % CI]", "success / failure / diverged /"
-            " time limit", "length", "eval (s)", "training", "note"]
+    head = [
+        "agent",
+        "success [95 % CI]",
+        "return [95 % CI]",
+        "success / failure / diverged / time limit",
+        "length",
+        "eval (s)",
+        "training",
+        "note",
+    ]
     if with_env:
         head.insert(0, "environment")
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         train = (
             f"{r['algo']} {int(float(r['timesteps'])):,} steps, {float(r['train_s']):.0f} s"
-            if r.get("algo") else ""
+            if r.get("algo")
+            else ""
         )
         cells = [
             f"`{r['agent']}`",
@@ -237,8 +246,10 @@ def linearisation_section(env_id: str, level: str = "##") -> str:
     u0 = ", ".join(f"{v:.4g}" for v in lin.u0)
     eig = np.linalg.eigvals(lin.A)
     eigs = ", ".join(
-        f"{e.real:.4g}" if abs(e.imag) < 1e-9 else f"{e.real:.4g} {'-' if e.imag < 0 else '+'} "
-        f"{abs(e.imag):.4g}i" for e in eig
+        f"{e.real:.4g}"
+        if abs(e.imag) < 1e-9
+        else f"{e.real:.4g} {'-' if e.imag < 0 else '+'} {abs(e.imag):.4g}i"
+        for e in eig
     )
     return (
         f"{level} Linearisation at the operating point\n\n"
@@ -286,8 +297,10 @@ def render_animation(env_id: str, agent: str, seed: int = 0, width: int = 240, f
         if info.get("is_success") and first_success is None:
             first_success = step * dt
         frames.append(env.render())
-        done = terminated or truncated or (
-            first_success is not None and step * dt >= first_success + 2.0
+        done = (
+            terminated
+            or truncated
+            or (first_success is not None and step * dt >= first_success + 2.0)
         )
     env.close()
     stride = max(2, -(-len(frames) // frames_max))
@@ -299,8 +312,13 @@ def render_animation(env_id: str, agent: str, seed: int = 0, width: int = 240, f
     ]
     buf = io.BytesIO()
     images[0].save(
-        buf, format="GIF", save_all=True, append_images=images[1:], loop=0,
-        duration=round(1000 * stride * dt), optimize=True,
+        buf,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        loop=0,
+        duration=round(1000 * stride * dt),
+        optimize=True,
     )
     facts = {
         "env_id": env_id,
@@ -318,8 +336,7 @@ def animation(env_id: str) -> tuple[bytes | None, dict]:
     sidecar = ASSETS / f"{slug(env_id)}.json"
     if (ASSETS / f"{slug(env_id)}.gif").exists() and sidecar.exists():
         return None, json.loads(sidecar.read_text(encoding="utf-8"))
-    log.info("rendering %s's animation (run `python scripts/docs_site.py gifs` to keep it)",
-             env_id)
+    log.info("rendering %s's animation (run `python scripts/docs_site.py gifs` to keep it)", env_id)
     return render_animation(env_id, choose_agent(env_id, benchmark()))
 
 
@@ -331,8 +348,10 @@ def write_animations(ids: list[str]) -> None:
         gif, facts = render_animation(env_id, choose_agent(env_id, results))
         write_atomic(ASSETS / f"{slug(env_id)}.gif", gif)
         write_atomic(ASSETS / f"{slug(env_id)}.json", (json.dumps(facts, indent=1) + "\n").encode())
-        print(f"{env_id}: {facts['agent']}, {len(gif) / 1024:.0f} KiB, shown {facts['shown_s']} s,"
-              f" success at {facts['success_at_s']} s")
+        print(
+            f"{env_id}: {facts['agent']}, {len(gif) / 1024:.0f} KiB, shown {facts['shown_s']} s,"
+            f" success at {facts['success_at_s']} s"
+        )
 
 
 # ---- pages -------------------------------------------------------------------------------
@@ -364,7 +383,7 @@ def env_page(env_id: str, anim: dict) -> str:
         f"{anim['seed']})</code>, first {anim['shown_s']:.1f} s: {outcome}.</figcaption>\n"
         "</figure>",
         "",
-        f"- **Make**: `gymnasium.make(\"{env_id}\")`",
+        f'- **Make**: `gymnasium.make("{env_id}")`',
         f"- **Action space**: `{facts['action_space']}`",
         f"- **Observation space**: `Box(low, high, {obs.shape}, {obs.dtype})` (table below)",
         f"- **Episode limit**: {facts['max_episode_steps']} steps of "
@@ -372,8 +391,8 @@ def env_page(env_id: str, anim: dict) -> str:
         "- **Model**: " + (f"[`{model}`](../models/{model}.md)" if model else "unregistered"),
         f"- **Declared in**: `{module}`; entry points `{spec.entry_point}` and "
         f"`{spec.vector_entry_point}` (vector)",
-        "- **Versions**: " + ", ".join(
-            f"**{v}**" if v == env_id else f"[{v}]({slug(v)}.md)" for v in versions),
+        "- **Versions**: "
+        + ", ".join(f"**{v}**" if v == env_id else f"[{v}]({slug(v)}.md)" for v in versions),
         "",
         "```python",
         "import gymnasium as gym",
@@ -396,8 +415,11 @@ def env_page(env_id: str, anim: dict) -> str:
     if rows:
         lines += [measured_on(results), "", results_table(rows), ""]
     else:
-        lines += ["This id is not in the agents benchmark (it runs the current version of each "
-                  "task, `envs.ENV_IDS`).", ""]
+        lines += [
+            "This id is not in the agents benchmark (it runs the current version of each "
+            "task, `envs.ENV_IDS`).",
+            "",
+        ]
     return "\n".join(lines)
 
 
@@ -453,9 +475,13 @@ def model_page(name: str) -> str:
         lines += ["## Environments on this model", ""]
         lines += [f"- [{i}](../envs/{slug(i)}.md)" for i in on_it]
         lines.append("")
-        lines += [linearisation_section(i, "###").replace(
-            "### Linearisation at the operating point",
-            f"### Linearisation at the operating point of {i}") for i in on_it]
+        lines += [
+            linearisation_section(i, "###").replace(
+                "### Linearisation at the operating point",
+                f"### Linearisation at the operating point of {i}",
+            )
+            for i in on_it
+        ]
     lines += ["## Errata that concern it", ""]
     found = errata_of(name)
     if found:
@@ -523,7 +549,7 @@ def envs_index(anims: dict[str, dict]) -> str:
         model = model_name(task)
         lines.append(
             f"| [{env_id}]({slug(env_id)}.md) | ![{env_id}](../assets/envs/{slug(env_id)}.gif)"
-            f"{{ width=\"120\" }} | {summary} | "
+            f'{{ width="120" }} | {summary} | '
             + (f"[`{model}`](../models/{model}.md)" if model else "")
             + f" | {facts['action_space'].shape} | {facts['observation_space'].shape} |"
         )
@@ -544,8 +570,9 @@ def models_index() -> str:
     ]
     for name in model_names():
         m = dynamics.get_model(name)
-        on_it = [f"[{i}](../envs/{slug(i)}.md)" for i in env_ids()
-                 if model_name(task_of(i)) == name]
+        on_it = [
+            f"[{i}](../envs/{slug(i)}.md)" for i in env_ids() if model_name(task_of(i)) == name
+        ]
         lines.append(
             f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m.coordinates)} | "
             f"{', '.join(f'`{u}`' for u in m.inputs) or '-'} | {', '.join(on_it)} |"
@@ -651,9 +678,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "gifs":
         write_animations(args.ids or env_ids())
     else:
-        print("\n".join([*(f"envs/{slug(i)}.md" for i in env_ids()),
-                         *(f"models/{m}.md" for m in model_names()),
-                         *(f"reference/{m}.md" for m in modules())]))
+        print(
+            "\n".join(
+                [
+                    *(f"envs/{slug(i)}.md" for i in env_ids()),
+                    *(f"models/{m}.md" for m in model_names()),
+                    *(f"reference/{m}.md" for m in modules()),
+                ]
+            )
+        )
     return 0
 
 

@@ -49,8 +49,14 @@ for env_id in sys.argv[1:]:
 
 @pytest.mark.slow  # starts a process: a few seconds
 def test_gym_make_with_the_module_prefix_works_in_a_fresh_process():
-    done = subprocess.run([sys.executable, "-c", FRESH_WORKER, *IDS], env=_environ(), cwd=ROOT,
-                          capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [sys.executable, "-c", FRESH_WORKER, *IDS],
+        env=_environ(),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     expected = [f"{i} {gym.spec(i).make().observation_space.shape[0]} True" for i in IDS]
     assert done.stdout.split("\n")[:-1] == expected
@@ -75,13 +81,34 @@ def test_worker_processes_join_one_optuna_study_on_a_journal_file(tmp_path):
     from optuna.storages.journal import JournalFileBackend
 
     journal = tmp_path / "study.log"
-    command = [sys.executable, str(ROOT / "examples" / "optuna_search.py"),
-               "Lagrange/BeadOnRod-v1", "--storage", str(journal), "--study", "t",
-               "--trials", "1", "--timesteps", "512", "--episodes", "2",
-               "--out", str(tmp_path)]
-    workers = [subprocess.Popen(command, env=_environ(), cwd=tmp_path,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-               for _ in range(3)]
+    command = [
+        sys.executable,
+        str(ROOT / "examples" / "optuna_search.py"),
+        "Lagrange/BeadOnRod-v1",
+        "--storage",
+        str(journal),
+        "--study",
+        "t",
+        "--trials",
+        "1",
+        "--timesteps",
+        "512",
+        "--episodes",
+        "2",
+        "--out",
+        str(tmp_path),
+    ]
+    workers = [
+        subprocess.Popen(
+            command,
+            env=_environ(),
+            cwd=tmp_path,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for _ in range(3)
+    ]
     for w in workers:
         out, _ = w.communicate(timeout=600)
         assert w.returncode == 0, out
@@ -103,8 +130,14 @@ def test_a_seed_sweep_runs_through_xargs(tmp_path):
         f"{sys.executable} -m agents.train Lagrange/BeadOnRod-v1 --timesteps 256 --n-envs 2 "
         "--seed {} --run-dir sweep/seed{} --no-progress"
     )
-    done = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=_environ(),
-                          capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        ["bash", "-c", script],
+        cwd=tmp_path,
+        env=_environ(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     for seed in (0, 1):
         assert (tmp_path / "sweep" / f"seed{seed}" / "model.zip").exists()
