@@ -538,8 +538,8 @@ def envs_index(anims: dict[str, dict]) -> str:
         "Every registered `Lagrange/*` id, every version; each page is generated from the "
         "task's declaration, its module's docstring and `gymnasium.make`.",
         "",
-        "| id | | task | model | action | observation |",
-        "|---|---|---|---|---|---|",
+        "| | id and task | model | spaces |",
+        "|---|---|---|---|",
     ]
     for env_id in env_ids():
         task = task_of(env_id)
@@ -547,11 +547,12 @@ def envs_index(anims: dict[str, dict]) -> str:
         summary = escape_text(" ".join(summary.split()))
         facts = env_facts(env_id)
         model = model_name(task)
+        n_a, n_o = facts["action_space"].shape[-1], facts["observation_space"].shape[-1]
         lines.append(
-            f"| [{env_id}]({slug(env_id)}.md) | ![{env_id}](../assets/envs/{slug(env_id)}.gif)"
-            f'{{ width="120" }} | {summary} | '
-            + (f"[`{model}`](../models/{model}.md)" if model else "")
-            + f" | {facts['action_space'].shape} | {facts['observation_space'].shape} |"
+            f'| ![{env_id}](../assets/envs/{slug(env_id)}.gif){{ width="120" }} '
+            f"| [{env_id}]({slug(env_id)}.md)<br>{summary} | "
+            + (f"[{model}](../models/{model}.md)" if model else "")
+            + f" | {n_a} actions, {n_o} observations |"
         )
     return "\n".join(lines) + "\n"
 

@@ -107,3 +107,16 @@ def test_every_registered_id_and_model_is_in_the_navigation():
             assert f"envs/{env_id.replace('/', '-')}.md" in listed
     for name in dynamics.list_models():
         assert f"models/{name}.md" in listed
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_benchmark_numbers_carry_their_date_and_machine(site):
+    import json
+
+    results = json.loads((ROOT / "docs" / "data" / "agents.json").read_text(encoding="utf-8"))
+    html = _page(site, "benchmark")
+    assert re.search(r"Measured \d{4}-\d\d-\d\d", html) and "cores" in html
+    for env_id in {r["env_id"] for r in results["rows"]}:
+        page = unescape(re.sub(r"<[^>]+>", "", _page(site, f"envs/{env_id.replace('/', '-')}")))
+        assert f"Measured {results['finished'][:10]}" in page, env_id
+        assert f"{results['machine']['cores']} cores" in page, env_id
