@@ -154,44 +154,38 @@ def measured_on(results: dict) -> str:
     )
 
 
-def results_table(rows: list[dict], with_env: bool = False) -> str:
+def results_table(rows: list[dict]) -> str:
+    """The benchmark's rows as a table: success and return with their 95 % intervals, how
+    the episodes ended, mean length, training."""
+
     def pct(r, key):
         return f"{float(r[key]):.0%}"
 
-    head = [
-        "agent",
-        "success [95 % CI]",
-        "return [95 % CI]",
-        "success / failure / diverged / time limit",
-        "length",
-        "eval (s)",
-        "training",
-        "note",
-    ]
-    if with_env:
-        head.insert(0, "environment")
+    head = ["agent", "success [95 % CI]", "return [95 % CI]", "ended S / F / D / T", "length"]
+    head.append("training")
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         train = (
-            f"{r['algo']} {int(float(r['timesteps'])):,} steps, {float(r['train_s']):.0f} s"
+            f"{r['algo']}, {float(r['timesteps']) / 1e6:.2g}M steps, {float(r['train_s']):.0f} s"
             if r.get("algo")
             else ""
         )
+        note = f"<br>{r['note']}" if r.get("note") else ""
         cells = [
-            f"`{r['agent']}`",
+            f"`{r['agent']}`{note}",
             f"{pct(r, 'success_rate')} [{pct(r, 'success_low')}, {pct(r, 'success_high')}]",
             f"{float(r['mean_return']):.1f} [{float(r['return_low']):.1f}, "
             f"{float(r['return_high']):.1f}]",
             " / ".join(r[k] for k in ("n_success", "n_failure", "n_diverged", "n_time_limit")),
-            r["mean_length"],
-            r["eval_s"],
-            train,
-            r.get("note", ""),
+            f"{float(r['mean_length']):.0f}",
         ]
-        if with_env:
-            cells.insert(0, f"[{r['env_id']}](envs/{slug(r['env_id'])}.md)")
+        cells.append(train)
         lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+    legend = (
+        "Ended: episodes that ended in success (S), failure (F: the task terminated them), "
+        "divergence (D) or at the time limit (T)."
+    )
+    return "\n".join(lines) + "\n\n" + legend
 
 
 # ---- the environments' live facts --------------------------------------------------------
@@ -450,19 +444,20 @@ def model_page(name: str) -> str:
     model = dynamics.get_model(name)
     spec = model.spec
     image = f"{name}.png" if (DOCS / "img" / f"{name}.png").exists() else None
+    display = models_doc().display
     section = model_section(name, image, level=1, images="../img/")
-    lines = [re.sub(r"\$\$\n\$\$", "$$\n\n$$", section)]  # one display block each
+    lines = [section.replace("```text\n", "```{.text .prose}\n", 1)]  # wraps (extra.css)
     lines += [
         "## Energies and forces",
         "",
-        f"$$ T = {vlatex(spec.kinetic)} $$",
+        display(spec.kinetic, lhs="T ="),
         "",
-        f"$$ V = {vlatex(spec.potential)} $$",
+        display(spec.potential, lhs="V ="),
         "",
     ]
     if spec.forces:
         lines += ["Generalised (non-conservative) forces:", ""]
-        lines += [f"$$ Q_{{{vlatex(q)}}} = {vlatex(f)} $$\n" for q, f in spec.forces.items()]
+        lines += [display(f, lhs=f"Q_{{{vlatex(q)}}} =") + "\n" for q, f in spec.forces.items()]
     else:
         lines.append("No non-conservative generalised forces.")
     lines.append("")
@@ -591,7 +586,13 @@ def benchmark_page() -> str:
         "episodes: success with its 95 % Wilson interval, mean return with its 95 % Student t "
         "interval, how the episodes ended. The numbers are read from `docs/data/agents.json`, "
         "which `python benchmarks/agents.py --results docs/data/agents.json` writes.\n\n"
-        f"{measured_on(results)}\n\n{results_table(results['rows'], with_env=True)}\n"
+        f"{measured_on(results)}\n\n"
+        + "\n".join(
+            f"## [{env_id}](envs/{slug(env_id)}.md)\n\n"
+            + results_table([r for r in results["rows"] if r["env_id"] == env_id])
+            + "\n"
+            for env_id in dict.fromkeys(r["env_id"] for r in results["rows"])
+        )
     )
 
 
