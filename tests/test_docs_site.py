@@ -66,7 +66,7 @@ def test_every_model_has_a_page_with_its_equations(site):
     for name in dynamics.list_models():
         html = _page(site, f"models/{name}")
         found = re.findall(r'<div class="arithmatex">\\\[(.*?)\\\]</div>', html, re.S)
-        blocks = [re.sub(r"\\(begin|end)\{aligned\}|&", "", b).strip() for b in found]
+        blocks = [re.sub(r"\\(begin|end)\{aligned\}|&", "", unescape(b)).strip() for b in found]
         coordinates = dynamics.get_model(name).coordinates
         equations = [b for b in blocks if b.endswith("= 0")]
         assert len(equations) >= len(coordinates), name  # one equation of motion each
