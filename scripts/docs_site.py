@@ -102,7 +102,7 @@ def documented(task) -> tuple[str, str]:
     return module.__name__, document(inspect.getdoc(module) or "", task)
 
 
-# ---- Markdown helpers --------------------------------------------------------------------
+# ---- Markdown formatting -----------------------------------------------------------------
 def escape_text(markdown: str) -> str:
     """Docstring prose as Markdown: outside code, a '*' (N*m, theta1*) is literal unless it
     marks a list item; code spans may run over line ends, fenced blocks are left alone."""
