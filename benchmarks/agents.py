@@ -3,7 +3,10 @@
     python benchmarks/agents.py                 # every env: baselines, LQR, PPO (= agents.check)
     python benchmarks/agents.py --speed         # torch threads; env stepping; PPO vectorisation
 
-The scores part runs the main job (agents.check) into runs/benchmark and prints its table.
+The scores part runs the main job (agents.check) into runs/benchmark and prints its table;
+it also writes the rows, with the date and the machine of the run, as JSON (`--results`,
+default runs/benchmark/results.json): the documentation site reads docs/data/agents.json,
+refreshed with `--results docs/data/agents.json`.
 The speed part measures what chose the defaults: PPO training throughput with one and two
 torch threads, how fast SB3's DummyVecEnv of single envs steps compared with the
 environment's native vector env, and PPO's env-steps/s on 16 copies through each (the
@@ -13,7 +16,11 @@ native env driven by SB3 through agents.vecenv, autoresetting in the same step).
 from __future__ import annotations
 
 import argparse
+import csv
+import datetime
+import json
 import os
+import platform
 import sys
 import time
 from pathlib import Path
@@ -83,6 +90,47 @@ def _action_shape(env_id: str) -> tuple[int, ...]:
     return gym.make(env_id).action_space.shape
 
 
+def machine() -> dict:
+    """What ran the benchmark: processor, cores, memory, OS and the versions that matter."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            names = [ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")]
+        cpu = names[0] if names else cpu
+    except OSError:
+        pass
+    try:
+        memory_gib = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    except (ValueError, OSError, AttributeError):
+        memory_gib = None
+    versions = {}
+    for package in ("numpy", "numba", "sympy", "gymnasium", "torch", "stable-baselines3"):
+        try:
+            versions[package] = version(package)
+        except PackageNotFoundError:
+            pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "memory_gib": None if memory_gib is None else round(memory_gib, 1),
+        "os": platform.platform(terse=True),
+        "python": platform.python_version(),
+        "versions": versions,
+        "threads": os.environ.get("OMP_NUM_THREADS"),
+    }
+
+
+def write_results(path: Path, csv_path: Path, meta: dict) -> None:
+    """The report's CSV rows as JSON, with what and where was measured (`meta`)."""
+    from dynamics.cache import write_atomic
+
+    with open(csv_path, encoding="utf-8", newline="") as f:
+        rows = list(csv.DictReader(f))
+    write_atomic(path, (json.dumps({**meta, "rows": rows}, indent=1) + "\n").encode("utf-8"))
+
+
 def speed() -> None:
     print("| measurement | value |\n|---|---|")
     env_id = envs.ENV_IDS[0]
@@ -121,15 +169,32 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--timesteps", type=int, help="training budget (default: the YAML's)")
     parser.add_argument("--out", default="runs/benchmark")
+    parser.add_argument(
+        "--results", type=Path, help="the JSON results file (default: OUT/results.json)"
+    )
     args = parser.parse_args(argv)
     if args.speed:
         speed()
         return 0
+    started = datetime.datetime.now(datetime.timezone.utc)
     start = time.perf_counter()
     run_check(
         None, args.algo, args.episodes, 0, args.out, args.timesteps, fresh=True, progress=False
     )
-    print(f"benchmark wall time {time.perf_counter() - start:.0f} s")
+    wall = time.perf_counter() - start
+    args_given = sys.argv[1:] if argv is None else argv
+    meta = {
+        "command": " ".join(["python benchmarks/agents.py", *args_given]),
+        "started": started.isoformat(timespec="seconds"),
+        "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "wall_s": round(wall, 1),
+        "episodes": args.episodes,
+        "seed": 0,
+        "machine": machine(),
+    }
+    out = Path(args.out)
+    write_results(args.results or out / "results.json", out / "results.csv", meta)
+    print(f"benchmark wall time {wall:.0f} s")
     return 0
 
 

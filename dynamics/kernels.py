@@ -99,7 +99,8 @@ def rhs(t, x, u, p, A, z, dx):
 @njit(cache=True, error_model="numpy")
 def project(t, x, p, A, z):
     """Remove the constraint violation B qdot + b from the rates, orthogonally in the
-    kinetic-energy metric: qdot <- qdot + dv, [[M, B^T], [B, 0]] [dv; mu] = [0; -(B qdot + b)]."""
+    kinetic-energy metric: qdot <- qdot + dv,
+    `[[M, B^T], [B, 0]] [dv; mu] = [0; -(B qdot + b)]`."""
     if N_C == 0:
         return
     kkt_matrix(t, x, p, A)

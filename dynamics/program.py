@@ -52,8 +52,8 @@ class Program:
     def derivatives(
         self, exprs: Sequence, wrt: Sequence, prefix: str = "d"
     ) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[list]]:
-        """(steps, D): further assignments, after `self.needed(exprs)`, and D[i][j] =
-        d exprs[i] / d wrt[j] in the program's symbols (0 where it does not depend on it).
+        """(steps, D): further assignments, after `self.needed(exprs)`, and `D[i][j]` =
+        `d exprs[i] / d wrt[j]` in the program's symbols (0 where it does not depend on it).
         `wrt` are input symbols (never assigned in the program)."""
         index = {v: j for j, v in enumerate(wrt)}
         tangent: dict[sp.Symbol, dict[int, sp.Expr]] = {v: {j: sp.S.One} for v, j in index.items()}

@@ -126,27 +126,54 @@ SKETCHES = {
 }
 
 
-def model_section(name: str, image: str | None) -> str:
-    """The Markdown section of one model."""
+def display(expr, lhs: str = "", rhs: str = "", width: int = 220) -> str:
+    """`lhs expr rhs` as display LaTeX, a long sum broken into aligned lines of about
+    `width` LaTeX characters (MathJax and GitHub do not wrap equations)."""
+    import sympy as sp
+    from sympy.physics.vector.printing import vlatex
+
+    expr = sp.sympify(expr)
+    terms = expr.as_ordered_terms() if isinstance(expr, sp.Add) else (expr,)  # print order
+    pieces = []
+    for i, term in enumerate(terms):
+        negative = term.could_extract_minus_sign()
+        text = vlatex(-term if negative else term)
+        pieces.append(("- " if negative else ("" if i == 0 else "+ ")) + text)
+    lines, line = [], lhs
+    for piece in pieces:
+        if len(line) + len(piece) > width and line.strip() not in ("", lhs.strip()):
+            lines.append(line)
+            line = ""
+        line += (" " if line else "") + piece
+    lines.append(line + rhs)
+    if len(lines) == 1:
+        return f"$$ {lines[0]} $$"
+    body = " \\\\\n".join("&" + ln if k == 0 else "& \\quad " + ln for k, ln in enumerate(lines))
+    return f"$$\n\\begin{{aligned}}\n{body}\n\\end{{aligned}}\n$$"
+
+
+def model_section(name: str, image: str | None, level: int = 2, images: str = "img/") -> str:
+    """The Markdown section of one model (its heading at `level`, schematics under `images`;
+    the documentation site's model pages start from it too)."""
     from sympy.physics.vector.printing import vlatex
 
     model = dynamics.get_model(name)
     spec, derived = model.spec, model.derived
-    lines = [f"## `{name}`", ""]
+    lines = [f"{'#' * level} `{name}`", ""]
     doc = inspect.cleandoc(spec.description or "").splitlines()
     lines += ["```text", *[line.rstrip() for line in doc], "```", ""]
     if image:
-        lines += [f"![{name}](img/{image})", ""]
+        lines += [f"![{name}]({images}{image})", ""]
     lines.append(f"Coordinates: {', '.join(f'`{c}`' for c in model.coordinates)}.  ")
     lines.append(f"Inputs: {', '.join(f'`{u}`' for u in model.inputs) or 'none'}.")
     lines += ["", "| parameter | default | unit | meaning |", "|---|---|---|---|"]
     for sym, par in spec.parameters.items():
         lines.append(f"| `{sym}` | {par.default:g} | {par.unit or '-'} | {par.doc} |")
     lines += ["", "Lagrange's equations (each = 0):", ""]
-    lines += [f"$$ {vlatex(eq)} = 0 $$" for eq in model.equations()]
+    lines += [display(eq, rhs=" = 0") + "\n" for eq in model.equations()]
     if spec.constraints:
         lines += ["", "Nonholonomic constraints (each = 0):", ""]
-        lines += [f"$$ {vlatex(c)} = 0 $$" for c in spec.constraints]
+        lines += [display(c, rhs=" = 0") + "\n" for c in spec.constraints]
     if derived.outputs:
         lines += ["", "Outputs:", ""]
         lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in derived.outputs.items()]

@@ -1,0 +1,698 @@
+"""The documentation site's generated pages: mkdocs runs this file as its hooks (mkdocs.yml).
+
+Nothing on those pages is copied by hand. At every build it writes, from the code:
+- one page per registered `Lagrange/*` id (every version) from its task declaration and its
+  module's docstring, with the spaces of `gymnasium.make(id)`, an animation under a
+  baseline agent, and the agents benchmark's numbers with their date and machine;
+- one page per registered model from its derivation (through scripts/gen_models_doc.py),
+  with T, V, the generalised forces, the linearisation at the operating point of each env
+  on it, and the errata whose tests check it;
+- the benchmark page and an API reference page per module (mkdocstrings).
+New ids and models appear by themselves. The animations take seconds each, so they are
+rendered by a command and committed under docs/assets/envs/; one that is missing is
+rendered during the build instead (and the build says so):
+
+    python scripts/docs_site.py gifs [ID ...]     # (re)render the animations
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import functools
+import importlib
+import importlib.util
+import inspect
+import io
+import json
+import logging
+import pkgutil
+import re
+import sys
+import warnings
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+DOCS = ROOT / "docs"
+ASSETS = DOCS / "assets" / "envs"  # committed animations: <slug>.gif and <slug>.json
+RESULTS = DOCS / "data" / "agents.json"  # written by benchmarks/agents.py --results
+NAMESPACE = "Lagrange/"
+PACKAGES = ("dynamics", "envs", "agents")
+BASELINES = ("plan", "lqr", "heuristic")  # agents that need no training, best first on ties
+log = logging.getLogger("mkdocs.hooks.docs_site")
+
+
+# ---- what the code registers -------------------------------------------------------------
+def env_ids() -> list[str]:
+    """Every registered Lagrange id, every version, grouped by name."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the namespace)
+
+    ids = [k for k in gym.registry if k.startswith(NAMESPACE)]
+    return sorted(ids, key=lambda i: (i.rsplit("-v", 1)[0], int(i.rsplit("-v", 1)[1])))
+
+
+def model_names() -> list[str]:
+    import dynamics
+
+    return list(dynamics.list_models())
+
+
+@functools.cache
+def models_doc():
+    """scripts/gen_models_doc.py, the models page's generator, as a module."""
+    path = ROOT / "scripts" / "gen_models_doc.py"
+    spec = importlib.util.spec_from_file_location("gen_models_doc", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def slug(env_id: str) -> str:
+    return env_id.replace("/", "-")
+
+
+def task_of(env_id: str):
+    import gymnasium as gym
+
+    import envs  # noqa: F401
+
+    return gym.spec(env_id).kwargs["task"]
+
+
+def model_name(task) -> str | None:
+    """The registered model a task runs on (None for an unregistered one)."""
+    model = task.model
+    name = model if isinstance(model, str) else getattr(model, "name", None)
+    return name if name in model_names() else None
+
+
+def documented(task) -> tuple[str, str]:
+    """(module name, the module's docstring with the tables generated for `task`).
+
+    The one place that reaches into the envs' docstring generator: re-point it here when
+    that moves."""
+    from envs.docs import document
+
+    functions = (task.reward, task.success, *(getattr(t, "fn", None) for t in task.terms))
+    module = next(inspect.getmodule(f) for f in functions if callable(f))
+    return module.__name__, document(inspect.getdoc(module) or "", task)
+
+
+# ---- Markdown formatting -----------------------------------------------------------------
+def escape_text(markdown: str) -> str:
+    """Docstring prose as Markdown: outside code, a '*' (N*m, theta1*) is literal unless it
+    marks a list item; code spans may run over line ends, fenced blocks are left alone."""
+    chunks = re.split(r"(^```.*?^```[^\n]*$)", markdown, flags=re.S | re.M)
+    for k in range(0, len(chunks), 2):  # the even chunks are outside fenced blocks
+        parts = chunks[k].split("`")
+        for i in range(0, len(parts), 2):  # the even parts are outside code spans
+            parts[i] = parts[i].replace("*", r"\*")
+            parts[i] = re.sub(r"^(\s*)\\\*(?= )", r"\1*", parts[i], flags=re.M)
+        chunks[k] = "`".join(parts)
+    return "".join(chunks)
+
+
+def sections(doc: str) -> tuple[str, dict[str, str]]:
+    """A Gymnasium-style docstring: (its summary, {'## ' heading: body})."""
+    summary, *rest = re.split(r"^## ", doc, flags=re.M)
+    found = {}
+    for part in rest:
+        title, _, body = part.partition("\n")
+        found[title.strip()] = body.strip("\n")
+    return summary.strip(), found
+
+
+def latex_matrix(M, digits: int = 4) -> str:
+    import numpy as np
+
+    def num(v: float) -> str:
+        text = "0" if abs(v) < 1e-12 else f"{v:.{digits}g}"
+        mantissa, e, exponent = text.partition("e")
+        return mantissa + (f" \\times 10^{{{int(exponent)}}}" if e else "")
+
+    rows = [" & ".join(num(v) for v in row) for row in np.atleast_2d(M)]
+    return r"\begin{bmatrix}" + r" \\ ".join(rows) + r"\end{bmatrix}"
+
+
+def benchmark() -> dict | None:
+    return json.loads(RESULTS.read_text(encoding="utf-8")) if RESULTS.exists() else None
+
+
+def measured_on(results: dict) -> str:
+    m = results["machine"]
+    versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
+    return (
+        f"Measured {results['finished'][:10]} ({results['started']} to {results['finished']}, "
+        f"{results['wall_s'] / 60:.0f} min) by `{results['command']}`: {results['episodes']} "
+        f"episodes per agent, seeds {results['seed']}..{results['seed'] + results['episodes'] - 1}"
+        f", on {m['cpu']}, {m['cores']} cores, {m['memory_gib']} GiB, {m['os']}, Python "
+        f"{m['python']} ({versions}; OMP_NUM_THREADS={m.get('threads')})."
+    )
+
+
+def results_table(rows: list[dict]) -> str:
+    """The benchmark's rows as a table: success and return with their 95 % intervals, how
+    the episodes ended, mean length, training."""
+
+    def pct(r, key):
+        return f"{float(r[key]):.0%}"
+
+    head = ["agent", "success [95 % CI]", "return [95 % CI]", "ended S / F / D / T", "length"]
+    head.append("training")
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        train = (
+            f"{r['algo']}, {float(r['timesteps']) / 1e6:.2g}M steps, {float(r['train_s']):.0f} s"
+            if r.get("algo")
+            else ""
+        )
+        note = f"<br>{r['note']}" if r.get("note") else ""
+        cells = [
+            f"`{r['agent']}`{note}",
+            f"{pct(r, 'success_rate')} [{pct(r, 'success_low')}, {pct(r, 'success_high')}]",
+            f"{float(r['mean_return']):.1f} [{float(r['return_low']):.1f}, "
+            f"{float(r['return_high']):.1f}]",
+            " / ".join(r[k] for k in ("n_success", "n_failure", "n_diverged", "n_time_limit")),
+            f"{float(r['mean_length']):.0f}",
+        ]
+        cells.append(train)
+        lines.append("| " + " | ".join(cells) + " |")
+    legend = (
+        "Ended: episodes that ended in success (S), failure (F: the task terminated them), "
+        "divergence (D) or at the time limit (T)."
+    )
+    return "\n".join(lines) + "\n\n" + legend
+
+
+# ---- the environments' live facts --------------------------------------------------------
+def operating_point(env):
+    """(x0, u0) the task regulates to, after reset (the env's public contract)."""
+    return env.unwrapped.operating_point()
+
+
+@functools.cache
+def env_facts(env_id: str) -> dict:
+    """What `gymnasium.make(env_id)` shows: spaces, limits, the operating point after
+    reset(seed=0) and the linearisation there (None where the task declares none)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from agents.linear import linearize, state_names
+
+    with warnings.catch_warnings():  # an older version's deprecation notice is no news here
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gym.make(env_id)
+    env.reset(seed=0)
+    u = env.unwrapped
+    facts = {
+        "action_space": env.action_space,
+        "observation_space": env.observation_space,
+        "max_episode_steps": env.spec.max_episode_steps,
+        "control_period": float(u.control_period),
+        "system": u.system,
+        "lin": None,
+    }
+    try:
+        x0, u0 = operating_point(env)
+    except (ValueError, TypeError, NotImplementedError) as exc:
+        facts["no_lin"] = str(exc)
+    else:
+        lin = linearize(u.system, np.asarray(x0, float), np.asarray(u0, float))
+        facts["lin"] = lin
+        facts["states"] = state_names(u.system)
+    env.close()
+    return facts
+
+
+def linearisation_section(env_id: str, level: str = "##") -> str:
+    import numpy as np
+
+    facts = env_facts(env_id)
+    lin = facts["lin"]
+    if lin is None:
+        return f"{level} Linearisation\n\nNo operating point declared ({facts['no_lin']}).\n"
+    names = ", ".join(f"`{s}`" for s in lin.states)
+    x0 = ", ".join(f"{v:.4g}" for v in lin.x0)
+    u0 = ", ".join(f"{v:.4g}" for v in lin.u0)
+    eig = np.linalg.eigvals(lin.A)
+    eigs = ", ".join(
+        f"{e.real:.4g}"
+        if abs(e.imag) < 1e-9
+        else f"{e.real:.4g} {'-' if e.imag < 0 else '+'} {abs(e.imag):.4g}i"
+        for e in eig
+    )
+    return (
+        f"{level} Linearisation at the operating point\n\n"
+        f"About the operating point after `reset(seed=0)` (the task's `operating_point`): "
+        f"x0 = ({x0}) over ({names}), inputs u0 = ({u0}) over "
+        f"({', '.join(f'`{s}`' for s in lin.inputs)}) holding it; "
+        "d(dx)/dt = A dx + B du from the derived model's exact Jacobians "
+        "(`agents.linear.linearize`; B has a column per model input, the action drives "
+        f"{', '.join(f'`{a}`' for a in task_of(env_id).actuated)}):\n\n"
+        f"$$ A = {latex_matrix(lin.A)}, \\quad B = {latex_matrix(lin.B)} $$\n\n"
+        f"Eigenvalues of A (1/s): {eigs}.\n"
+    )
+
+
+# ---- animations --------------------------------------------------------------------------
+def choose_agent(env_id: str, results: dict | None) -> str:
+    """The baseline to animate: the untrained agent with the best measured success, else
+    the task's heuristic, else LQR."""
+    rows = [r for r in (results or {}).get("rows", []) if r["env_id"] == env_id]
+    scored = {r["agent"]: float(r["success_rate"]) for r in rows if r["agent"] in BASELINES}
+    if scored:
+        return max(BASELINES, key=lambda a: (scored.get(a, -1.0), -BASELINES.index(a)))
+    return "heuristic" if task_of(env_id).heuristic is not None else "lqr"
+
+
+def render_animation(env_id: str, agent: str, seed: int = 0, width: int = 240, frames_max=80):
+    """(GIF bytes, facts) of one episode of `agent` from reset(seed) in real time, until 2 s
+    after the first success, the episode's end, or 15 s: at most `frames_max` frames."""
+    import gymnasium as gym
+    import numpy as np
+    from PIL import Image
+
+    from agents.evaluate import make_agent
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gym.make(env_id, render_mode="rgb_array")
+    policy = make_agent(agent, env, seed)
+    obs, _ = env.reset(seed=seed)
+    dt = float(env.unwrapped.control_period)
+    frames, step, first_success, done = [env.render()], 0, None, False
+    while not done and step * dt < 15.0:
+        action, _ = policy.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, info = env.step(np.asarray(action))
+        step += 1
+        if info.get("is_success") and first_success is None:
+            first_success = step * dt
+        frames.append(env.render())
+        done = (
+            terminated
+            or truncated
+            or (first_success is not None and step * dt >= first_success + 2.0)
+        )
+    env.close()
+    stride = max(2, -(-len(frames) // frames_max))
+    frames = frames[::stride]
+    h = round(width * frames[0].shape[0] / frames[0].shape[1])
+    images = [
+        Image.fromarray(f).resize((width, h), Image.LANCZOS).quantize(32, dither=Image.Dither.NONE)
+        for f in frames
+    ]
+    buf = io.BytesIO()
+    images[0].save(
+        buf,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        loop=0,
+        duration=round(1000 * stride * dt),
+        optimize=True,
+    )
+    facts = {
+        "env_id": env_id,
+        "agent": agent,
+        "seed": seed,
+        "shown_s": round(step * dt, 2),
+        "success_at_s": None if first_success is None else round(first_success, 2),
+        "ended": "terminated" if done and terminated else "",
+    }
+    return buf.getvalue(), facts
+
+
+def animation(env_id: str) -> tuple[bytes | None, dict]:
+    """The committed animation's facts (bytes None), or a fresh rendering when missing."""
+    sidecar = ASSETS / f"{slug(env_id)}.json"
+    if (ASSETS / f"{slug(env_id)}.gif").exists() and sidecar.exists():
+        return None, json.loads(sidecar.read_text(encoding="utf-8"))
+    log.info("rendering %s's animation (run `python scripts/docs_site.py gifs` to keep it)", env_id)
+    return render_animation(env_id, choose_agent(env_id, benchmark()))
+
+
+def write_animations(ids: list[str]) -> None:
+    from dynamics.cache import write_atomic
+
+    results = benchmark()
+    for env_id in ids:
+        gif, facts = render_animation(env_id, choose_agent(env_id, results))
+        write_atomic(ASSETS / f"{slug(env_id)}.gif", gif)
+        write_atomic(ASSETS / f"{slug(env_id)}.json", (json.dumps(facts, indent=1) + "\n").encode())
+        print(
+            f"{env_id}: {facts['agent']}, {len(gif) / 1024:.0f} KiB, shown {facts['shown_s']} s,"
+            f" success at {facts['success_at_s']} s"
+        )
+
+
+# ---- pages -------------------------------------------------------------------------------
+def env_page(env_id: str, anim: dict) -> str:
+    import gymnasium as gym
+
+    task = task_of(env_id)
+    spec = gym.spec(env_id)
+    module, doc = documented(task)
+    summary, parts = sections(escape_text(doc))
+    facts = env_facts(env_id)
+    model = model_name(task)
+    name = env_id.rsplit("-v", 1)[0]
+    versions = [i for i in env_ids() if i.rsplit("-v", 1)[0] == name]
+    obs = facts["observation_space"]
+    seconds = facts["max_episode_steps"] * facts["control_period"]
+    if anim["success_at_s"] is not None:
+        outcome = f"success (the task's criterion) from {anim['success_at_s']:.2f} s"
+    else:
+        outcome = "no success in the frames shown"
+    lines = [
+        f"# {env_id}",
+        "",
+        summary,
+        "",
+        f'<figure markdown="span">\n  ![{env_id} under {anim["agent"]}]'
+        f'(../assets/envs/{slug(env_id)}.gif){{ width="320" }}\n'
+        f"  <figcaption>Agent <code>{anim['agent']}</code> from <code>reset(seed="
+        f"{anim['seed']})</code>, first {anim['shown_s']:.1f} s: {outcome}.</figcaption>\n"
+        "</figure>",
+        "",
+        f'- **Make**: `gymnasium.make("{env_id}")`',
+        f"- **Action space**: `{facts['action_space']}`",
+        f"- **Observation space**: `Box(low, high, {obs.shape}, {obs.dtype})` (table below)",
+        f"- **Episode limit**: {facts['max_episode_steps']} steps of "
+        f"{facts['control_period']:g} s ({seconds:g} s)",
+        "- **Model**: " + (f"[`{model}`](../models/{model}.md)" if model else "unregistered"),
+        f"- **Declared in**: `{module}`; entry points `{spec.entry_point}` and "
+        f"`{spec.vector_entry_point}` (vector)",
+        "- **Versions**: "
+        + ", ".join(f"**{v}**" if v == env_id else f"[{v}]({slug(v)}.md)" for v in versions),
+        "",
+        "```python",
+        "import gymnasium as gym",
+        "import envs  # registers the Lagrange namespace",
+        "",
+        f'env = gym.make("{env_id}", render_mode="rgb_array")',
+        f'vec = gym.make_vec("{env_id}", num_envs=1024,',
+        '                   vectorization_mode="vector_entry_point")',
+        f'env = gym.make("envs:{env_id}")  # or let Gymnasium import the package',
+        "```",
+        "",
+    ]
+    for title, body in parts.items():
+        lines += [f"## {title}", "", body, ""]
+    lines.append(linearisation_section(env_id))
+    lines += ["## Measured baselines", ""]
+    lines.append(lqr_region(env_id))
+    results = benchmark()
+    rows = [r for r in (results or {}).get("rows", []) if r["env_id"] == env_id]
+    if rows:
+        lines += [measured_on(results), "", results_table(rows), ""]
+    else:
+        lines += [
+            "This id is not in the agents benchmark (it runs the current version of each "
+            "task, `envs.ENV_IDS`).",
+            "",
+        ]
+    return "\n".join(lines)
+
+
+def lqr_region(env_id: str) -> str:
+    from agents.lqr import start_region
+
+    task = task_of(env_id)
+    facts = env_facts(env_id)
+    states = task.lqr.states or (facts["states"] if facts["lin"] is not None else ())
+    if not states:
+        return ""
+    region = start_region(task.lqr, states)
+    cells = ", ".join(f"`{k}` ± {v:g}" for k, v in region.items())
+    return (
+        f"LQR's region (the task's `LQRHints`): uniform perturbations of the operating point "
+        f"within {cells}, where LQR is expected to succeed (`python -m agents.lqr {env_id}` "
+        "measures it). The benchmark below starts every agent from the task's own start "
+        "distribution.\n"
+    )
+
+
+def model_page(name: str) -> str:
+    from sympy.physics.vector.printing import vlatex
+
+    import dynamics
+
+    model_section = models_doc().model_section
+    model = dynamics.get_model(name)
+    spec = model.spec
+    image = f"{name}.png" if (DOCS / "img" / f"{name}.png").exists() else None
+    display = models_doc().display
+    section = model_section(name, image, level=1, images="../img/")
+    lines = [section.replace("```text\n", "```{.text .prose}\n", 1)]  # wraps (extra.css)
+    lines += [
+        "## Energies and forces",
+        "",
+        display(spec.kinetic, lhs="T ="),
+        "",
+        display(spec.potential, lhs="V ="),
+        "",
+    ]
+    if spec.forces:
+        lines += ["Generalised (non-conservative) forces:", ""]
+        lines += [display(f, lhs=f"Q_{{{vlatex(q)}}} =") + "\n" for q, f in spec.forces.items()]
+    else:
+        lines.append("No non-conservative generalised forces.")
+    lines.append("")
+    if spec.prescribed:
+        lines += ["Prescribed (rheonomic) coordinates:", ""]
+        lines += [f"$$ {vlatex(q)} = {vlatex(f)} $$\n" for q, f in spec.prescribed.items()]
+        lines.append("")
+    on_it = [i for i in env_ids() if model_name(task_of(i)) == name]
+    if on_it:
+        lines += ["## Environments on this model", ""]
+        lines += [f"- [{i}](../envs/{slug(i)}.md)" for i in on_it]
+        lines.append("")
+        lines += [
+            linearisation_section(i, "###").replace(
+                "### Linearisation at the operating point",
+                f"### Linearisation at the operating point of {i}",
+            )
+            for i in on_it
+        ]
+    lines += ["## Errata that concern it", ""]
+    found = errata_of(name)
+    if found:
+        lines += [
+            "From [the errata](../errata.md): the entries whose tests derive this model.",
+            "",
+            *found,
+        ]
+    else:
+        lines += ["None of [the errata](../errata.md) is checked on this model.", ""]
+    return "\n".join(lines)
+
+
+def _test_source(ref: str, names: list[str]) -> str:
+    """The source of test `path::function`, or its whole file when the function reaches the
+    model through a fixture (names no model itself)."""
+    path, _, func = ref.partition("::")
+    source = (ROOT / path).read_text(encoding="utf-8")
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef) and node.name == func:
+            segment = ast.get_source_segment(source, node) or ""
+            if any(f'"{n}"' in segment or f"'{n}'" in segment for n in names):
+                return segment
+    return source
+
+
+def errata_of(name: str) -> list[str]:
+    """The tables of docs/errata.md cut to the rows that name `name` or whose tests derive
+    it (each table keeps its own header)."""
+    names = model_names()
+    tables: dict[str, list[str]] = {}
+    header = None
+    for line in (DOCS / "errata.md").read_text(encoding="utf-8").splitlines():
+        if line.startswith("| #"):
+            header = line
+            continue
+        if header is None or not line.startswith("| ") or line.startswith("|---"):
+            continue
+        refs = re.findall(r"tests/[\w/]+\.py(?:::\w+)?", line)
+        sources = [_test_source(r, names) for r in refs if (ROOT / r.split("::")[0]).exists()]
+        quoted = [f'"{name}"', f"'{name}'"]
+        if f"`{name}`" in line or any(q in src for src in sources for q in quoted):
+            tables.setdefault(header, []).append(line)
+    out = []
+    for head, rows in tables.items():
+        out += [head, "|" + "---|" * (head.count("|") - 1), *rows, ""]
+    return out
+
+
+def envs_index(anims: dict[str, dict]) -> str:
+    lines = [
+        "# Environments",
+        "",
+        "Every registered `Lagrange/*` id, every version; each page is generated from the "
+        "task's declaration, its module's docstring and `gymnasium.make`.",
+        "",
+        "| | id and task | model | spaces |",
+        "|---|---|---|---|",
+    ]
+    for env_id in env_ids():
+        task = task_of(env_id)
+        summary = sections(documented(task)[1])[0].split(":", 1)[-1].strip()
+        summary = escape_text(" ".join(summary.split()))
+        facts = env_facts(env_id)
+        model = model_name(task)
+        n_a, n_o = facts["action_space"].shape[-1], facts["observation_space"].shape[-1]
+        lines.append(
+            f'| ![{env_id}](../assets/envs/{slug(env_id)}.gif){{ width="120" }} '
+            f"| [{env_id}]({slug(env_id)}.md)<br>{summary} | "
+            + (f"[{model}](../models/{model}.md)" if model else "")
+            + f" | {n_a} actions, {n_o} observations |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def models_index() -> str:
+    import dynamics
+
+    lines = [
+        "# Models",
+        "",
+        "Every registered model (`dynamics.list_models()`); each page is derived from its "
+        "`ModelSpec` at build time. The book's misprints are in [the errata](../errata.md).",
+        "",
+        "| model | coordinates | inputs | environments |",
+        "|---|---|---|---|",
+    ]
+    for name in model_names():
+        m = dynamics.get_model(name)
+        on_it = [
+            f"[{i}](../envs/{slug(i)}.md)" for i in env_ids() if model_name(task_of(i)) == name
+        ]
+        lines.append(
+            f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m.coordinates)} | "
+            f"{', '.join(f'`{u}`' for u in m.inputs) or '-'} | {', '.join(on_it)} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def benchmark_page() -> str:
+    results = benchmark()
+    if results is None:
+        return "# Agents benchmark\n\nNo results file (docs/data/agents.json) yet.\n"
+    return (
+        "# Agents benchmark\n\n"
+        "Every agent on every current environment (`envs.ENV_IDS`), scored on the same seeded "
+        "episodes: success with its 95 % Wilson interval, mean return with its 95 % Student t "
+        "interval, how the episodes ended. The numbers are read from `docs/data/agents.json`, "
+        "which `python benchmarks/agents.py --results docs/data/agents.json` writes.\n\n"
+        f"{measured_on(results)}\n\n"
+        + "\n".join(
+            f"## [{env_id}](envs/{slug(env_id)}.md)\n\n"
+            + results_table([r for r in results["rows"] if r["env_id"] == env_id])
+            + "\n"
+            for env_id in dict.fromkeys(r["env_id"] for r in results["rows"])
+        )
+    )
+
+
+def modules() -> list[str]:
+    """The public modules of the packages (no private or __main__ ones)."""
+    names = []
+    for package in PACKAGES:
+        names.append(package)
+        path = [str(ROOT / package)]
+        for info in pkgutil.walk_packages(path, prefix=f"{package}."):
+            if not any(p.startswith("_") for p in info.name.split(".")):
+                names.append(info.name)
+    return names
+
+
+def reference_page(module: str) -> str:
+    return f"# `{module}`\n\n::: {module}\n"
+
+
+def pages() -> tuple[dict[str, str], dict[str, bytes]]:
+    """({page path: Markdown}, {asset path: bytes}) generated for the site."""
+    texts, blobs, anims = {}, {}, {}
+    for env_id in env_ids():
+        gif, anims[env_id] = animation(env_id)
+        if gif is not None:
+            blobs[f"assets/envs/{slug(env_id)}.gif"] = gif
+        texts[f"envs/{slug(env_id)}.md"] = env_page(env_id, anims[env_id])
+    texts["envs/index.md"] = envs_index(anims)
+    for name in model_names():
+        texts[f"models/{name}.md"] = model_page(name)
+    texts["models/index.md"] = models_index()
+    texts["benchmark.md"] = benchmark_page()
+    for module in modules():
+        texts[f"reference/{module}.md"] = reference_page(module)
+    return texts, blobs
+
+
+# ---- mkdocs hooks ------------------------------------------------------------------------
+GUIDE = ("new-system.md", "scaling-out.md", "errata.md")
+
+
+def on_config(config):
+    """The navigation: the guide, then the generated sections."""
+    if sys.path[0] != str(ROOT):  # mkdocs restores sys.path after loading this file
+        sys.path.insert(0, str(ROOT))
+    config["nav"] = [
+        {"Home": "index.md"},
+        {"User guide": list(GUIDE) + ["benchmark.md"]},
+        {"Environments": ["envs/index.md"] + [{i: f"envs/{slug(i)}.md"} for i in env_ids()]},
+        {"Models": ["models/index.md"] + [{m: f"models/{m}.md"} for m in model_names()]},
+        {"API reference": [{m: f"reference/{m}.md"} for m in modules()]},
+    ]
+    return config
+
+
+def on_files(files, config):
+    from mkdocs.structure.files import File
+
+    texts, blobs = pages()
+    for path, content in {**texts, **blobs}.items():
+        files.append(File.generated(config, path, content=content))
+    return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    """The home page's environment gallery, from the registry."""
+    if page.file.src_uri != "index.md":
+        return markdown
+    cells = [
+        f'<a class="env-card" href="envs/{slug(i)}/"><img src="assets/envs/{slug(i)}.gif" '
+        f'alt="{i}" width="200"><span>{i}</span></a>'
+        for i in env_ids()
+    ]
+    table = '<div class="env-gallery">\n' + "\n".join(cells) + "\n</div>"
+    return markdown.replace("<!-- gallery -->", table)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    gifs = sub.add_parser("gifs", help="render the env animations into docs/assets/envs/")
+    gifs.add_argument("ids", nargs="*", help="ids (default: every registered Lagrange id)")
+    sub.add_parser("pages", help="list the pages the site generates")
+    args = parser.parse_args(argv)
+    if args.command == "gifs":
+        write_animations(args.ids or env_ids())
+    else:
+        print(
+            "\n".join(
+                [
+                    *(f"envs/{slug(i)}.md" for i in env_ids()),
+                    *(f"models/{m}.md" for m in model_names()),
+                    *(f"reference/{m}.md" for m in modules()),
+                ]
+            )
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    importlib.invalidate_caches()
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""The documentation site builds with warnings as errors, and its generated pages cover the
+registry: every Lagrange id (every version) has a page with its animation and its spaces'
+tables, every model a page with its derived equations."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from html import unescape
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import dynamics
+import envs  # noqa: F401  (registers the Lagrange namespace)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("material")
+    out = tmp_path_factory.mktemp("site")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NO_MKDOCS_2_WARNING": "1"}
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(out)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert done.returncode == 0, done.stderr[-4000:]
+    return out
+
+
+def _page(site: Path, path: str) -> str:
+    page = site / path / "index.html"
+    assert page.exists(), f"no page {path}"
+    return page.read_text(encoding="utf-8")
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_every_registered_id_has_a_page_with_its_animation_and_spaces(site):
+    ids = [k for k in gym.registry if k.startswith("Lagrange/")]
+    assert set(envs.ENV_IDS) <= set(ids) and "Lagrange/Acrobot-v1" in ids  # older versions too
+    for env_id in ids:
+        slug = env_id.replace("/", "-")
+        html = _page(site, f"envs/{slug}")
+        assert re.search(rf'<img[^>]+src="[./]*assets/envs/{slug}\.gif"', html), env_id
+        assert (site / "assets" / "envs" / f"{slug}.gif").stat().st_size > 1000
+        assert "<th>Input</th>" in html and "<th>Observation</th>" in html, env_id
+        obs = gym.spec(env_id).make().observation_space.shape[0]
+        assert f"<td>{obs - 1}</td>" in html  # the observation table's last row
+        text = unescape(re.sub(r"<[^>]+>", "", html))
+        assert f'env = gym.make("{env_id}"' in text, env_id  # how to make it
+        assert f"{slug}/" in _page(site, "envs")  # listed on the index
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_every_model_has_a_page_with_its_equations(site):
+    for name in dynamics.list_models():
+        html = _page(site, f"models/{name}")
+        found = re.findall(r'<div class="arithmatex">\\\[(.*?)\\\]</div>', html, re.S)
+        blocks = [re.sub(r"\\(begin|end)\{aligned\}|&", "", unescape(b)).strip() for b in found]
+        coordinates = dynamics.get_model(name).coordinates
+        equations = [b for b in blocks if b.endswith("= 0")]
+        assert len(equations) >= len(coordinates), name  # one equation of motion each
+        assert any(b.startswith("T =") for b in blocks), name
+        assert any(b.startswith("V =") for b in blocks), name
+
+
+def _generator():
+    """scripts/docs_site.py, the site's page generator (mkdocs runs it as its hooks)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_site", ROOT / "scripts" / "docs_site.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_docstring_prose_keeps_asterisks_literal_outside_code_and_list_markers():
+    text = "3 N*m, phi*.\n* v2: `make(x,\n**kw)` 2 N*m\n```\na*b\n```\n"
+    assert _generator().escape_text(text) == (
+        "3 N\\*m, phi\\*.\n* v2: `make(x,\n**kw)` 2 N\\*m\n```\na*b\n```\n"
+    )
+
+
+def test_a_models_errata_are_the_rows_whose_tests_derive_it():
+    rows = _generator().errata_of("two_link_arm")
+    numbers = [r.split("|")[1].strip() for r in rows if r.startswith("| ") and "| #" not in r]
+    # 6: (7.25)'s Q1 (its test reaches the arm through a fixture); 14: the notation clash
+    assert numbers == ["6", "14"]
+    assert rows[0].startswith("| # | Where | Printed |")  # each table keeps its header
+
+
+def test_every_registered_id_and_model_is_in_the_navigation():
+    site = _generator()
+    config = site.on_config({})
+    listed = str(config["nav"])
+    for env_id in gym.registry:
+        if env_id.startswith("Lagrange/"):
+            assert f"envs/{env_id.replace('/', '-')}.md" in listed
+    for name in dynamics.list_models():
+        assert f"models/{name}.md" in listed
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_benchmark_numbers_carry_their_date_and_machine(site):
+    import json
+
+    results = json.loads((ROOT / "docs" / "data" / "agents.json").read_text(encoding="utf-8"))
+    html = _page(site, "benchmark")
+    assert re.search(r"Measured \d{4}-\d\d-\d\d", html) and "cores" in html
+    for env_id in {r["env_id"] for r in results["rows"]}:
+        page = unescape(re.sub(r"<[^>]+>", "", _page(site, f"envs/{env_id.replace('/', '-')}")))
+        assert f"Measured {results['finished'][:10]}" in page, env_id
+        assert f"{results['machine']['cores']} cores" in page, env_id
