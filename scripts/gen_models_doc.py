@@ -126,12 +126,19 @@ SKETCHES = {
 }
 
 
+EQUATIONS_NOT_PRINTED = {
+    "whipple_bicycle": "Its equations and constraints run to thousands of operations each "
+    "and are not printed; `python -m dynamics.bicycle` prints their linearisation "
+    "(the benchmark's M, C1, K0, K2).",
+}
+
+
 def model_section(name: str, image: str | None) -> str:
     """The Markdown section of one model."""
     from sympy.physics.vector.printing import vlatex
 
     model = dynamics.get_model(name)
-    spec, derived = model.spec, model.derived
+    spec = model.spec
     lines = [f"## `{name}`", ""]
     doc = inspect.cleandoc(spec.description or "").splitlines()
     lines += ["```text", *[line.rstrip() for line in doc], "```", ""]
@@ -142,14 +149,16 @@ def model_section(name: str, image: str | None) -> str:
     lines += ["", "| parameter | default | unit | meaning |", "|---|---|---|---|"]
     for sym, par in spec.parameters.items():
         lines.append(f"| `{sym}` | {par.default:g} | {par.unit or '-'} | {par.doc} |")
+    if name in EQUATIONS_NOT_PRINTED:
+        return "\n".join([*lines, "", EQUATIONS_NOT_PRINTED[name]]) + "\n"
     lines += ["", "Lagrange's equations (each = 0):", ""]
     lines += [f"$$ {vlatex(eq)} = 0 $$" for eq in model.equations()]
     if spec.constraints:
         lines += ["", "Nonholonomic constraints (each = 0):", ""]
         lines += [f"$$ {vlatex(c)} = 0 $$" for c in spec.constraints]
-    if derived.outputs:
+    if model.derived.outputs:
         lines += ["", "Outputs:", ""]
-        lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in derived.outputs.items()]
+        lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in model.derived.outputs.items()]
     return "\n".join(lines) + "\n"
 
 
