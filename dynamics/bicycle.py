@@ -15,17 +15,20 @@ separated by evaluating at v = 0 and v = 1 (the dependence on v is polynomial, s
 exact; the tests check it at other speeds). Parameters are the model's names; the compiled
 model comes from the cache, so a call after the first takes milliseconds.
 
-    python -m dynamics.bicycle            # matrices, weave and capsize speeds, eigenvalues
+    python -m dynamics.bicycle --plot bicycle.png   # matrices, speeds, eigenvalues (figure)
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 from functools import lru_cache
 
 import numpy as np
 from scipy.optimize import brentq
+
+from .cache import write_atomic
 
 MODEL = "whipple_bicycle"
 LEAN_STEER = ("phi", "delta")
@@ -210,6 +213,37 @@ def report(**params) -> str:
     return "\n".join(lines)
 
 
+def plot(path: str, v_max: float = 10.0, **params) -> None:
+    """The eigenvalues' real and imaginary parts against speed, 0..v_max m/s (the paper's
+    Figure 3), with the self-stable range shaded; saved to `path`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    speeds = np.linspace(0.0, v_max, 501)
+    ev = eigenvalues(speeds, **params)
+    weave, capsize = stable_speeds(v_max=v_max, **params)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for k in range(ev.shape[1]):
+        ax.plot(speeds, ev[:, k].real, "C0.", ms=2, label="real part" if k == 0 else None)
+        oscillating = ev[:, k].imag > 0  # one of each complex pair
+        ax.plot(speeds[oscillating], ev[oscillating, k].imag, "C1.", ms=2)
+    ax.plot([], [], "C1.", label="imaginary part")
+    ax.axvspan(weave, capsize, color="0.9", label=f"self-stable {weave:.3f}-{capsize:.3f} m/s")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_ylim(-10, 10)
+    ax.set_xlabel("forward speed v (m/s)")
+    ax.set_ylabel("eigenvalue (1/s)")
+    ax.set_title("whipple_bicycle: lean and steer eigenvalues against speed")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
+    write_atomic(path, buffer.getvalue())
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m dynamics.bicycle",
@@ -223,6 +257,7 @@ def main(argv: list[str] | None = None) -> int:
         metavar="NAME=VALUE",
         help="override a whipple_bicycle parameter; repeatable",
     )
+    parser.add_argument("--plot", metavar="FILE", help="save eigenvalues against speed")
     args = parser.parse_args(argv)
     params = {}
     for item in args.param:
@@ -232,6 +267,9 @@ def main(argv: list[str] | None = None) -> int:
         params[name] = float(value)
     try:
         print(report(**params))
+        if args.plot:
+            plot(args.plot, **params)
+            print(f"saved {args.plot}")
     except ValueError as e:
         parser.error(str(e))
     return 0

@@ -270,3 +270,9 @@ def test_bad_parameters_name_the_problem():
         bicycle.benchmark_matrices(mB=80.0)
     with pytest.raises(ValueError, match="'m_F' of whipple_bicycle must be positive"):
         bicycle.benchmark_matrices(m_F=0.0)
+
+
+def test_plot_of_eigenvalues_against_speed(tmp_path):
+    path = tmp_path / "bicycle.png"
+    assert bicycle.main(["--plot", str(path)]) == 0
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
