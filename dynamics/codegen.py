@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import sympy as sp
-from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pycode import PythonCodePrinter
 
 from .derive import Derived
@@ -47,52 +46,37 @@ class _LanePrinter(_Printer):
         return super()._print_Pow(expr, rational)
 
 
-class _VectorPrinter(NumPyPrinter):
-    def _print_Symbol(self, expr):
-        return expr.name
-
-
-def _vectorized(prog: Program, header: list[str]) -> str:
-    """`kkt_columns(t, x, u, p)`: the entries of the KKT matrix and right-hand side as numpy
-    expressions over columns (x has shape (2n, N)); constant entries stay Python floats."""
-    printer = _VectorPrinter({"fully_qualified_modules": True})
-    matrix, rhs = prog.results["kkt"], prog.results["rhs"]
-    lines = ["", "", "def kkt_columns(t, x, u, p):"]
-    lines += ["    " + h for h in header]
-    for sym, sub in prog.needed(matrix + rhs):
-        lines.append(f"    {sym} = {printer.doprint(sub)}")
-    entries = [printer.doprint(e) if not e.is_number else repr(float(e)) for e in matrix + rhs]
-    lines.append(f"    A = ({', '.join(entries[: len(matrix)])},)")
-    lines.append(f"    r = ({', '.join(entries[len(matrix) :])},)")
-    lines.append("    return A, r")
-    return "\n".join(lines)
-
-
 def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
-    """Straight-line Gaussian elimination without pivoting of the KKT system a z = r held in
-    scalars a{i}_{j}, r{i}, skipping structural zeros: valid for the mass/constraint matrix
-    in its natural order (M positive definite, -B M^-1 B^T negative definite), as in
-    `System._derivative_columns`. A pivot below PIVOT_TOL times the largest entry of its
-    original row (singular to working precision) becomes NaN, so the row's result is NaN."""
+    """Straight-line symmetric Gaussian elimination without pivoting (LDL^T order) of the
+    KKT system a z = r held in scalars a{i}_{j} (upper triangle, j >= i) and r{i}, skipping
+    structural zeros: valid for the mass/constraint matrix in its natural order, which is
+    symmetric and stays so under elimination (M positive definite, then -B M^-1 B^T negative
+    definite), so only the upper triangle is updated, half the work of a general
+    elimination. A pivot below PIVOT_TOL times the largest entry of its original row
+    (singular to working precision) becomes NaN, so the row's result is NaN."""
     nz = [list(row) for row in nonzero]
+
+    def a(i, j):
+        return f"a{min(i, j)}_{max(i, j)}"
+
     lines = []
     for i in range(k):
-        terms = [f"abs(a{i}_{j})" for j in range(k) if nz[i][j]] or ["0.0"]
+        terms = [f"abs({a(i, j)})" for j in range(k) if nz[i][j]] or ["0.0"]
         lines.append(f"s{i} = " + (terms[0] if len(terms) == 1 else f"max({', '.join(terms)})"))
     for c in range(k):
         lines.append(f"a{c}_{c} = a{c}_{c} if abs(a{c}_{c}) > PIVOT_TOL * s{c} else math.nan")
         for i in range(c + 1, k):
-            if not nz[i][c]:
+            if not nz[c][i]:
                 continue
-            lines.append(f"f = a{i}_{c} / a{c}_{c}")
-            for j in range(c + 1, k):
+            lines.append(f"f = a{c}_{i} / a{c}_{c}")
+            for j in range(i, k):
                 if nz[c][j]:
                     lines.append(
                         f"a{i}_{j} = a{i}_{j} - f * a{c}_{j}"
                         if nz[i][j]
                         else f"a{i}_{j} = -f * a{c}_{j}"
                     )
-                    nz[i][j] = True
+                    nz[i][j] = nz[j][i] = True
             lines.append(f"r{i} = r{i} - f * r{c}")
     for c in range(k - 1, -1, -1):
         rest = "".join(f" - a{c}_{j} * z{j}" for j in range(c + 1, k) if nz[c][j])
@@ -109,15 +93,16 @@ def _lanes(n: int, nu: int, prog: Program, header: list[str]) -> str:
     printer = _LanePrinter({"fully_qualified_modules": True})
     kkt = [[matrix[i * k + j] for j in range(k)] for i in range(k)]
     nonzero = [[not (kkt[i][j].is_number and kkt[i][j] == 0) for j in range(k)] for i in range(k)]
-    exprs = [kkt[i][j] for i in range(k) for j in range(k) if nonzero[i][j]] + list(rhs)
-    names = [f"a{i}_{j}" for i in range(k) for j in range(k) if nonzero[i][j]]
+    upper = [(i, j) for i in range(k) for j in range(i, k)]  # the matrix is symmetric
+    exprs = [kkt[i][j] for i, j in upper if nonzero[i][j]] + list(rhs)
+    names = [f"a{i}_{j}" for i, j in upper if nonzero[i][j]]
     names += [f"r{i}" for i in range(k)]
     body = ["t = T[b]"]
     body += [f"q{i} = XS[{i}, b]" for i in range(n)] + [f"qd{i} = XS[{n + i}, b]" for i in range(n)]
     body += [f"u{j} = U[{j}, b]" for j in range(nu)]
     body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in prog.needed(exprs)]
     body += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, exprs)]
-    body += [f"a{i}_{j} = 0.0" for i in range(k) for j in range(k) if not nonzero[i][j]]
+    body += [f"a{i}_{j} = 0.0" for i, j in upper if not nonzero[i][j]]
     body += _solve_lines(k, nonzero)
     body += [f"D[{i}, b] = qd{i}" for i in range(n)] + [f"D[{n + i}, b] = z{i}" for i in range(n)]
     lines = [
@@ -287,7 +272,6 @@ def generate(d: Derived, key: str) -> str:
             ]
         )
     )
-    parts.append(_vectorized(prog, x_args + unpack_u))
     parts.append(_lanes(n, nu, prog, unpack_p))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

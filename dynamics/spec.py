@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import sympy as sp
 import sympy.physics.mechanics as me
 
+from .calculus import compact
+
 t = me.dynamicsymbols._t
 """The time symbol of every model (the one `dynamicsymbols` differentiate by)."""
 
@@ -113,7 +115,8 @@ def generalized_forces(
     the velocity of the point the force acts on (or the angular velocity of the body a torque
     acts on) and the force (or torque). Both may be sympy.physics.vector Vectors in `frame`,
     or column Matrices of Cartesian components (e.g. the time derivative of a position given
-    by transformation equations). Returns {coordinate: Q_s}.
+    by transformation equations). Returns {coordinate: Q_s}, each expanded where that makes
+    it smaller (no general simplification: it costs seconds per entry for a large system).
     """
     coordinates = list(coordinates)
     rates = [q.diff(t) for q in coordinates]
@@ -132,4 +135,4 @@ def generalized_forces(
                 raise ValueError(f"velocity {v.shape} and force {f.shape} differ in shape.")
             for q, qd in zip(coordinates, rates):
                 Q[q] += (v.diff(qd).T * f)[0, 0]
-    return {q: sp.simplify(expr) for q, expr in Q.items()}
+    return {q: compact(expr) for q, expr in Q.items()}

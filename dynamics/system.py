@@ -159,27 +159,12 @@ class System:
     def state_derivative(self, t, x, u=None) -> np.ndarray:
         """dx/dt = [qdot, qddot] at time t, state x, inputs u (zeros if None)."""
         T, X, U, lead = self._batch(t, x, u)
+        out = np.empty_like(X)
         if X.shape[0] >= VECTORIZE_FROM:
-            out = self._derivative_columns(T, X, U)
+            self._m.derivative_rows(T, X, U, self._p, out, BLOCK)
         else:
-            out = np.empty_like(X)
             self._m.derivative_batch(T, X, U, self._p, out)
         return self._finite("state_derivative", out, T, X, U).reshape(lead + (self.state_size,))
-
-    def _derivative_columns(self, T, X, U) -> np.ndarray:
-        """Large batches: numpy over columns, whose SIMD sin/cos beat scalar libm calls."""
-        n = self.n_q
-        k = n + self.n_c
-        with np.errstate(all="ignore"):  # a singular row gives NaN, reported by _finite
-            A, r = self._m.kkt_columns(
-                T, np.ascontiguousarray(X.T), np.ascontiguousarray(U.T), self._p
-            )
-            z = _eliminate([list(A[i * k : (i + 1) * k]) for i in range(k)], list(r))
-        out = np.empty_like(X)
-        out[:, :n] = X[:, n:]
-        for i in range(n):
-            out[:, n + i] = z[i]
-        return out
 
     def accelerations(self, t, x, u=None) -> np.ndarray:
         """qddot, shape (..., n)."""
@@ -340,45 +325,11 @@ def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tableau.a, tableau.b, tableau.c
 
 
-VECTORIZE_FROM = 512
-"""Batch size from which state_derivative evaluates column-wise with numpy (measured
-crossover on the arm and the disk; benchmarks/dynamics.py)."""
-
-
-def _is_zero(a) -> bool:
-    return isinstance(a, float) and a == 0.0
-
-
-def _eliminate(A: list, r: list) -> list:
-    """Solve A z = r for lists of entries (arrays over the batch, or floats), by Gaussian
-    elimination without pivoting: valid for the mass/constraint matrix in its natural order,
-    whose leading block M is positive definite and whose Schur complement -B M^-1 B^T is
-    negative definite. Exact zeros are skipped. Rows whose pivot falls below PIVOT_TOL times
-    the largest entry of its row (singular there, as the compiled solve judges) give NaN."""
-    k = len(r)
-    scale = [np.max(np.abs(np.broadcast_arrays(*row)), axis=0) for row in A]
-    for c in range(k):
-        pivot = A[c][c]
-        A[c][c] = np.where(np.abs(pivot) > PIVOT_TOL * scale[c], pivot, np.nan)
-        for i in range(c + 1, k):
-            if _is_zero(A[i][c]):
-                continue
-            f = A[i][c] / A[c][c]
-            for j in range(c + 1, k):
-                if not _is_zero(A[c][j]):
-                    A[i][j] = A[i][j] - f * A[c][j]
-            r[i] = r[i] - f * r[c]
-    z = [0.0] * k
-    for c in range(k - 1, -1, -1):
-        s = r[c]
-        for j in range(c + 1, k):
-            if not _is_zero(A[c][j]):
-                s = s - A[c][j] * z[j]
-        z[c] = s / A[c][c]
-    return z
-
-
-PIVOT_TOL = 64 * np.finfo(np.float64).eps  # as in the compiled solve (kernels.py)
+VECTORIZE_FROM = 1
+"""Batch size from which state_derivative evaluates rows in vector lanes (`derivative_rows`,
+the integrators' evaluation) rather than one at a time with a pivoting solve: every size.
+Measured faster from one row (the arm: 1.4e6 against 1.3e6 rows/s; 9x at 1024 rows; 8x for a
+chain of seven links on a cart), and a row's result is the same bits in any batch."""
 
 
 def _rows(a: np.ndarray, lead: tuple, nb: int) -> np.ndarray:
