@@ -2,10 +2,10 @@
 A 463: their published matrices, self-stable speeds and eigenvalues (section 5, Table 2), and
 their closed-form expressions for the matrices (Appendix A) at non-default parameters.
 
-All of it needs the compiled whipple_bicycle. Cold, that is minutes (measured on two shared
-cores with four other jobs: compile() 115 s, then 120 s of numba compilation of the
-linearisation's kernels on first use), so the module runs with -m slow; with a warm cache it
-takes about a minute, most of it the nonlinear simulations."""
+All of it needs the compiled whipple_bicycle. Cold, that takes a minute or more on two shared
+cores (compile() 32 s, then 39 s of numba compilation of the linearisation's kernels on first
+use, measured at a load of 2), so the module runs with -m slow; with a warm cache it takes
+about 16 s, most of it the nonlinear simulations."""
 
 import math
 
