@@ -34,6 +34,8 @@ MODEL = "whipple_bicycle"
 LEAN_STEER = ("phi", "delta")
 DEPENDENT_RATES = ("x", "y", "psi", "theta", "theta_F")
 """The rates the five velocity constraints fix, given the lean, steer and rear wheel rates."""
+HOLONOMIC_ROW = 4
+"""The model's fifth constraint: the rate of the front contact's height, f(phi, theta, delta)."""
 
 
 @lru_cache(maxsize=32)
@@ -109,8 +111,11 @@ def reduced_linearization(system, speed: float) -> tuple[np.ndarray, np.ndarray]
     dRdq, Bc = _constraint_jacobians(system, x0)
     dep = [idx[c] for c in DEPENDENT_RATES]
     pitch = idx["theta"]
-    # the holonomic constraint's row: its rate form is grad f . qdot, so B's row is grad f
-    hol = int(np.argmax(np.abs(Bc[:, pitch])))
+    # the holonomic constraint's rate form is grad f . qdot, so its row of B is grad f
+    hol = HOLONOMIC_ROW
+    off = [j for j in range(n) if names[j] not in ("phi", "theta", "delta")]
+    if np.abs(Bc[hol, off]).max() > 0.0:
+        raise ValueError(f"{MODEL}: constraint {hol} is not the front wheel's contact height.")
     basis = []
     for which in ("q", "qd"):
         for c in LEAN_STEER:
