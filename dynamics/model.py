@@ -32,6 +32,7 @@ _REGISTRY: dict[str, str] = {
     "particle_on_curve": "dynamics.models.curve:particle_on_curve",
     "particle_on_4_sphere": "dynamics.models.sphere4:particle_on_4_sphere",
     "eccentric_disk_slider": "dynamics.models.crank:eccentric_disk_slider",
+    "whipple_bicycle": "dynamics.models.bicycle:whipple_bicycle",
 }
 
 

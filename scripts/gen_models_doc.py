@@ -126,6 +126,13 @@ SKETCHES = {
 }
 
 
+EQUATIONS_NOT_PRINTED = {
+    "whipple_bicycle": "Its equations and constraints run to thousands of operations each "
+    "and are not printed; `python -m dynamics.bicycle` prints their linearisation "
+    "(the benchmark's M, C1, K0, K2).",
+}
+
+
 def display(expr, lhs: str = "", rhs: str = "", width: int = 220) -> str:
     """`lhs expr rhs` as display LaTeX, a long sum broken into aligned lines of about
     `width` LaTeX characters (MathJax and GitHub do not wrap equations)."""
@@ -158,7 +165,7 @@ def model_section(name: str, image: str | None, level: int = 2, images: str = "i
     from sympy.physics.vector.printing import vlatex
 
     model = dynamics.get_model(name)
-    spec, derived = model.spec, model.derived
+    spec = model.spec
     lines = [f"{'#' * level} `{name}`", ""]
     doc = inspect.cleandoc(spec.description or "").splitlines()
     lines += ["```text", *[line.rstrip() for line in doc], "```", ""]
@@ -169,14 +176,16 @@ def model_section(name: str, image: str | None, level: int = 2, images: str = "i
     lines += ["", "| parameter | default | unit | meaning |", "|---|---|---|---|"]
     for sym, par in spec.parameters.items():
         lines.append(f"| `{sym}` | {par.default:g} | {par.unit or '-'} | {par.doc} |")
+    if name in EQUATIONS_NOT_PRINTED:
+        return "\n".join([*lines, "", EQUATIONS_NOT_PRINTED[name]]) + "\n"
     lines += ["", "Lagrange's equations (each = 0):", ""]
     lines += [display(eq, rhs=" = 0") + "\n" for eq in model.equations()]
     if spec.constraints:
         lines += ["", "Nonholonomic constraints (each = 0):", ""]
         lines += [display(c, rhs=" = 0") + "\n" for c in spec.constraints]
-    if derived.outputs:
+    if model.derived.outputs:
         lines += ["", "Outputs:", ""]
-        lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in derived.outputs.items()]
+        lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in model.derived.outputs.items()]
     return "\n".join(lines) + "\n"
 
 

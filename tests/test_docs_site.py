@@ -69,9 +69,17 @@ def test_every_model_has_a_page_with_its_equations(site):
         blocks = [re.sub(r"\\(begin|end)\{aligned\}|&", "", unescape(b)).strip() for b in found]
         coordinates = dynamics.get_model(name).coordinates
         equations = [b for b in blocks if b.endswith("= 0")]
-        assert len(equations) >= len(coordinates), name  # one equation of motion each
+        if name in _generator_models_doc().EQUATIONS_NOT_PRINTED:  # too large to read: says so
+            assert "are not printed" in html, name
+        else:
+            assert len(equations) >= len(coordinates), name  # one equation of motion each
         assert any(b.startswith("T =") for b in blocks), name
         assert any(b.startswith("V =") for b in blocks), name
+
+
+def _generator_models_doc():
+    """scripts/gen_models_doc.py as a module."""
+    return _generator().models_doc()
 
 
 def _generator():

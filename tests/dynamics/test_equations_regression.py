@@ -78,8 +78,14 @@ def evaluate(name: str) -> dict[str, np.ndarray]:
     return out
 
 
+NO_REFERENCE = {"whipple_bicycle"}
+"""Models registered after the reference was made: the simplifying derivation does not finish
+for them (the bicycle's is checked against its paper in test_bicycle.py)."""
+
+
 def names() -> list[str]:
-    return dynamics.list_models() + list(EXAMPLES.values())
+    models = [n for n in dynamics.list_models() if n not in NO_REFERENCE]
+    return models + list(EXAMPLES.values())
 
 
 def _reference() -> dict[str, dict[str, np.ndarray]]:
