@@ -7,6 +7,7 @@ without importing sympy or building the model at all.
 
 from __future__ import annotations
 
+import ast
 import difflib
 import hashlib
 import importlib
@@ -14,6 +15,7 @@ import importlib.util
 from collections.abc import Callable
 from functools import cache
 from importlib import metadata
+import sysconfig
 from pathlib import Path
 
 from . import cache as _cache
@@ -44,15 +46,53 @@ def register(name: str, target: str) -> None:
 _CORE = ("spec.py", "calculus.py", "derive.py", "program.py", "codegen.py", "kernels.py")
 
 
+def _is_library(path: Path) -> bool:
+    """Whether `path` belongs to the standard library or an installed package."""
+    roots = {sysconfig.get_paths()[k] for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    return any(path.is_relative_to(root) for root in roots)
+
+
+def _factory_files(module: str) -> list[Path]:
+    """The source file of the factory's module and of every module it imports that is not a
+    library (one level: a constant imported from the user's other module changes the key)."""
+    origin = Path(importlib.util.find_spec(module).origin)
+    files = [origin]
+    try:
+        tree = ast.parse(origin.read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return files
+    package = module.rpartition(".")[0]
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                base = f"{parent}.{base}".strip(".")
+            names = [base] + [f"{base}.{a.name}".strip(".") for a in node.names]
+        for name in names:
+            try:
+                spec = importlib.util.find_spec(name) if name else None
+            except (ImportError, ValueError):
+                spec = None
+            path = Path(spec.origin) if spec is not None and spec.origin else None
+            if path is not None and path.suffix == ".py" and not _is_library(path):
+                files.append(path)
+    return sorted(set(files))
+
+
 @cache
 def _code_fingerprint(target: str | None = None) -> str:
-    """Hash of the sympy version, the files that derive and generate code, and the source
-    file of the factory `target` ('module:function') if given."""
+    """Hash of the sympy version, the files that derive and generate code, and, for a
+    factory `target` ('module:function'), its module's source and the sources of the
+    user's modules it imports (`_factory_files`)."""
     h = hashlib.sha256(metadata.version("sympy").encode())
     root = Path(__file__).parent
     paths = [root / name for name in _CORE]
     if target is not None:
-        paths.append(Path(importlib.util.find_spec(target.split(":")[0]).origin))
+        paths += _factory_files(target.split(":")[0])
     for path in paths:
         h.update(path.name.encode())
         h.update(path.read_bytes())

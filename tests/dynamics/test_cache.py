@@ -339,3 +339,26 @@ def test_cache_key_changes_with_the_code_generator(monkeypatch):
         monkeypatch.undo()
         model._code_fingerprint.cache_clear()
     assert dynamics.get_model("two_link_arm").key == key
+
+
+def test_a_factory_is_keyed_on_the_users_modules_it_imports(tmp_path, monkeypatch):
+    """A constant the factory imports from another of the user's modules changes the key
+    (it was keyed on the factory's own file only and kept serving the old physics)."""
+    import importlib
+    import sys
+
+    from dynamics import model as model_module
+
+    (tmp_path / "k_consts.py").write_text("LENGTH = 1.0\n")
+    (tmp_path / "k_factory.py").write_text(
+        "from k_consts import LENGTH\n\n\ndef factory():\n    return LENGTH\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name in ("k_consts", "k_factory"):
+        sys.modules.pop(name, None)
+    importlib.invalidate_caches()
+    files = model_module._factory_files("k_factory")
+    assert {p.name for p in files} == {"k_factory.py", "k_consts.py"}
+    before = model_module._code_fingerprint.__wrapped__("k_factory:factory")
+    (tmp_path / "k_consts.py").write_text("LENGTH = 2.0\n")
+    assert model_module._code_fingerprint.__wrapped__("k_factory:factory") != before
