@@ -12,10 +12,10 @@ import difflib
 import hashlib
 import importlib
 import importlib.util
+import sysconfig
 from collections.abc import Callable
 from functools import cache
 from importlib import metadata
-import sysconfig
 from pathlib import Path
 
 from . import cache as _cache
