@@ -1,6 +1,7 @@
 """Speed of the dynamics layer, with the two-link arm measured against hand-written peers.
 
     python benchmarks/dynamics.py [--quick]
+    python benchmarks/dynamics.py --scaling [--links 10]
 
 Reports, for every model: cold derive+generate time and first-call (numba) time in a fresh
 cache, warm compile time in a fresh process, microseconds per single `state_derivative`
@@ -10,6 +11,12 @@ the single-state path: plain floats + math by hand, sympy-generated scalar code
 (lambdify(modules="math") + a Cramer solve), C from sympy's code printer through ctypes,
 and the numba kernels this project generates. Ratios are what matter; absolute numbers
 depend on the machine. Run with OMP_NUM_THREADS=1.
+
+--scaling: an n-link pendulum on a cart (uniform rods, absolute angles, a force on the cart)
+written with the public `ModelSpec` API, n = 1..10, each size in fresh processes with a cold
+cache: derive, generate, compile (write and load the module) and first step (numba), the
+operations in the generated code, evaluations/s at 1024 rows, beside sympy's `LagrangesMethod`
+(mass matrix and forcing) and `KanesMethod` on the same system, each in its own process.
 """
 
 from __future__ import annotations
@@ -80,14 +87,11 @@ def generated_scalar(model):
     """sympy's scalar Python code for M and F, solved by Cramer's rule in floats."""
     import sympy as sp
 
-    from dynamics.codegen import _plain_symbols
-
-    d = model.derived
-    convert, xs, _, us = _plain_symbols(d)
-    ps = [sp.Symbol(f"p{k}") for k in range(len(d.spec.parameters))]
-    M = d.mass.applyfunc(convert)
-    F = d.forcing.applyfunc(convert)
-    f = sp.lambdify([xs, us, ps], [M[0, 0], M[0, 1], M[1, 1], F[0], F[1]], modules="math", cse=True)
+    code = model.derived.code
+    M, F = code.mass, code.forcing
+    f = sp.lambdify(
+        [code.x, code.u, code.p], [M[0, 0], M[0, 1], M[1, 1], F[0], F[1]], modules="math", cse=True
+    )
     p = list(model.parameters.values())
 
     def rhs(x, u):
@@ -102,20 +106,16 @@ def c_arm(model):
     """C from sympy's C printer (cse'd M, F and a Cramer solve), compiled with cc, via ctypes."""
     import sympy as sp
 
-    from dynamics.codegen import _plain_symbols
-
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         return None
-    d = model.derived
-    convert, xs, _, us = _plain_symbols(d)
-    M = d.mass.applyfunc(convert)
-    F = d.forcing.applyfunc(convert)
+    code = model.derived.code
+    M, F = code.mass, code.forcing
     repl, red = sp.cse([M[0, 0], M[0, 1], M[1, 1], F[0], F[1]])
     body = ["void rhs(const double *x, const double *u, const double *p, double *out) {"]
     body += [f"  double q{i} = x[{i}], qd{i} = x[{i + 2}];" for i in range(2)]
     body += [f"  double u{j} = u[{j}];" for j in range(2)]
-    body += [f"  double p{k} = p[{k}];" for k in range(len(d.spec.parameters))]
+    body += [f"  double p{k} = p[{k}];" for k in range(len(code.p))]
     body += [f"  double {s} = {sp.ccode(e)};" for s, e in repl]
     body += [f"  double e{i} = {sp.ccode(e)};" for i, e in enumerate(red)]
     body += [
@@ -298,11 +298,211 @@ def step_table() -> list[str]:
     return rows
 
 
+# ---- scaling: an n-link pendulum on a cart ---------------------------------------------------
+CHAIN = dict(m_c=1.0, m=0.3, l=0.5, g=9.81)
+
+
+def cart_chain(n: int):
+    """n uniform rods of mass m and length l in series on a cart of mass m_c, absolute angles
+    theta_i from upright, force F on the cart: T, V and Q by hand (the book's recipe)."""
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    from dynamics.spec import ModelSpec, Param, t
+
+    x = me.dynamicsymbols("x")
+    th = me.dynamicsymbols(f"theta1:{n + 1}")
+    mc, m, l, g = sp.symbols("m_c m l g", positive=True)
+    F = sp.Symbol("F")
+    T, V = mc * x.diff(t) ** 2 / 2, sp.S.Zero
+    px, py = x, sp.S.Zero
+    for i in range(n):
+        cx, cy = px + l / 2 * sp.sin(th[i]), py + l / 2 * sp.cos(th[i])
+        T += m * (cx.diff(t) ** 2 + cy.diff(t) ** 2) / 2 + m * l**2 / 24 * th[i].diff(t) ** 2
+        V += m * g * cy
+        px, py = px + l * sp.sin(th[i]), py + l * sp.cos(th[i])
+    units = {mc: "kg", m: "kg", l: "m", g: "m/s^2"}
+    params = {s: Param(CHAIN[str(s)], units[s]) for s in (mc, m, l, g)}
+    return ModelSpec(f"cart_chain_{n}", (x, *th), T, V, params, (F,), {x: F})
+
+
+def sympy_chain(n: int, method: str):
+    """The same system through sympy.physics.mechanics as its users write it: a particle and
+    rigid bodies in frames, gravity and F as loads, then `LagrangesMethod` on their
+    Lagrangian or `KanesMethod` (u = qdot). Returns (seconds, coordinates, rates, M, F) of
+    M [qddot] = F (Kane: M [udot] = F)."""
+    import time
+
+    import sympy as sp
+    import sympy.physics.mechanics as me
+
+    t0 = time.perf_counter()
+    mc, m, l, g = sp.symbols("m_c m l g", positive=True)
+    F = sp.Symbol("F")
+    q = me.dynamicsymbols(f"q0:{n + 1}")
+    u = me.dynamicsymbols(f"u0:{n + 1}")
+    rates = [qi.diff() for qi in q] if method == "lagrange" else u
+    N = me.ReferenceFrame("N")  # x right, y up
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    cart = O.locatenew("C", q[0] * N.x)
+    cart.set_vel(N, rates[0] * N.x)
+    bodies = [me.Particle("cart", cart, mc)]
+    loads = [(cart, F * N.x)]
+    joint = cart
+    for i in range(n):
+        # theta from upright, tipping towards +x: the rod's axis is sin(th) x + cos(th) y
+        A = N.orientnew(f"A{i}", "Axis", (q[i + 1], -N.z))
+        A.set_ang_vel(N, -rates[i + 1] * N.z)
+        G = joint.locatenew(f"G{i}", l / 2 * A.y)
+        G.v2pt_theory(joint, N, A)
+        inertia = me.inertia(A, 0, 0, m * l**2 / 12)
+        bodies.append(me.RigidBody(f"rod{i}", G, A, m, (inertia, G)))
+        loads.append((G, -m * g * N.y))
+        joint = joint.locatenew(f"J{i}", l * A.y)
+        joint.v2pt_theory(G, N, A)
+    if method == "lagrange":
+        lm = me.LagrangesMethod(me.Lagrangian(N, *bodies), q, forcelist=loads, frame=N)
+        lm.form_lagranges_equations()
+        M, Fv = lm.mass_matrix, lm.forcing
+    else:
+        kd = [qi.diff() - ui for qi, ui in zip(q, u)]
+        km = me.KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=kd)
+        km.kanes_equations(bodies, loads)
+        M, Fv = km.mass_matrix, km.forcing
+    return time.perf_counter() - t0, q, rates, M, Fv
+
+
+def scaling_one(n: int, what: str) -> dict:
+    """One size, in this (fresh) process: times in seconds, sizes, evaluations/s."""
+    import time
+
+    import sympy as sp
+    import sympy.physics.mechanics  # noqa: F401  (imports are not derivation time)
+
+    import dynamics.codegen
+    import dynamics.derive
+
+    # a size-1 derivation first, untimed, so that no method pays sympy's first-use costs
+    if what == "ours":
+        dynamics.codegen.generate(dynamics.derive.derive(cart_chain(1)), "warm-up")
+    else:
+        sympy_chain(1, what)
+    if what != "ours":
+        seconds, q, rates, M, F = sympy_chain(n, what)
+        out = {"seconds": seconds, "ops": int(sp.count_ops(list(M) + list(F)))}
+        if what == "lagrange":  # the same equations as ours, checked at one state
+            from dynamics.derive import derive
+
+            code = derive(cart_chain(n)).code
+            rng = np.random.default_rng(n)
+            xv = rng.uniform(-2, 2, 2 * (n + 1))
+            pv = [CHAIN[k] for k in ("m_c", "m", "l", "g")]
+            mc, m, l, g = sp.symbols("m_c m l g", positive=True)
+            point = dict(zip([r.diff() for r in rates], [0.0] * (n + 1)))
+            point |= dict(zip(rates, xv[n + 1 :])) | dict(zip(q, xv[: n + 1]))
+            point |= dict(zip((mc, m, l, g), pv)) | {sp.Symbol("F"): 0.7}
+            theirs = [float(me_subs(e, point)) for e in [*M, *F]]
+            values = dict(zip(code.x, xv)) | dict(zip(code.p, pv)) | {code.u[0]: 0.7}
+            ours = [float(e.xreplace(values)) for e in [*code.mass, *code.forcing]]
+            np.testing.assert_allclose(ours, theirs, rtol=1e-9, atol=1e-9)
+        return out
+
+    from dynamics import cache
+    from dynamics.codegen import generate
+    from dynamics.program import Program
+    from dynamics.system import System
+
+    model = dynamics.Model(cart_chain(n))
+    t0 = time.perf_counter()
+    d = model.derived
+    t1 = time.perf_counter()
+    source = generate(d, model.key)
+    t2 = time.perf_counter()
+    system = System(cache.load_or_build(model.name, model.key, lambda: source))
+    t3 = time.perf_counter()
+    x = np.zeros(system.state_size)
+    x[1 : n + 1] = 0.1
+    system.step(x, [0.0], 0.01)
+    t4 = time.perf_counter()
+    code = d.code
+    prog = Program({"m": list(code.mass), "f": list(code.forcing)})
+    steps = prog.needed(prog.results["m"] + prog.results["f"])
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(1024, system.state_size)) * 0.5
+    U = rng.normal(size=(1024, 1))
+    sec = per_call(lambda: system.state_derivative(0.0, X, U), number=20)
+    return {
+        "derive": t1 - t0,
+        "generate": t2 - t1,
+        "compile": t3 - t2,
+        "first_step": t4 - t3,
+        "ops": int(sp.count_ops(list(code.mass) + list(code.forcing))),
+        "ops_cse": int(sp.count_ops([e for _, e in steps] + prog.results["m"] + prog.results["f"])),
+        "evals": 1024 / sec,
+    }
+
+
+def me_subs(expr, point):
+    import sympy.physics.mechanics as me
+
+    return me.msubs(expr, point)
+
+
+def scaling_table(links: int) -> list[str]:
+    rows = [
+        "One process per size and method, cold cache. ours = derive + generate + compile "
+        "(write and load the module); first step = numba's compilation of the integrator; "
+        "LM = sympy `LagrangesMethod` (bodies, Lagrangian, M and F); Kane = `KanesMethod`. "
+        "Operations: sympy `count_ops` of M and F (ours as generated, then after the shared "
+        "common-subexpression pass that the kernels print).",
+        "",
+        "| n | coords | derive s | generate s | compile s | ours s | first step s | LM s | Kane s "
+        "| ours / LM | ops ours M,F | ops after CSE | ops LM M,F | evaluations/s, 1024 rows |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for n in range(1, links + 1):
+        got = {}
+        for what in ("ours", "lagrange", "kane"):
+            cache = tempfile.mkdtemp(prefix="lg-scaling-")
+            env = dict(os.environ, LAGRANGE_GYM_CACHE=cache, OMP_NUM_THREADS="1")
+            out = subprocess.run(
+                [sys.executable, __file__, "--scaling-one", str(n), what],
+                capture_output=True,
+                text=True,
+                env=env,
+                timeout=1800,
+            )
+            shutil.rmtree(cache, ignore_errors=True)
+            if out.returncode != 0:
+                raise RuntimeError(f"n = {n}, {what}: {out.stderr[-600:]}")
+            got[what] = json.loads(out.stdout.strip().splitlines()[-1])
+        o, lm, kane = got["ours"], got["lagrange"], got["kane"]
+        ours = o["derive"] + o["generate"] + o["compile"]
+        rows.append(
+            f"| {n} | {n + 1} | {o['derive']:.2f} | {o['generate']:.2f} | {o['compile']:.2f} "
+            f"| {ours:.2f} | {o['first_step']:.1f} | {lm['seconds']:.2f} | {kane['seconds']:.2f} "
+            f"| {ours / lm['seconds']:.2f}x | {o['ops']} | {o['ops_cse']} | {lm['ops']} "
+            f"| {o['evals']:.3g} |"
+        )
+        print(rows[-1], file=sys.stderr, flush=True)
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
     parser.add_argument("--models", nargs="*", default=None, help="models to time (default all)")
+    parser.add_argument("--scaling", action="store_true", help="n-link chain on a cart, n = 1..")
+    parser.add_argument("--links", type=int, default=10, help="largest n for --scaling")
+    parser.add_argument("--scaling-one", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.scaling_one:
+        print(json.dumps(scaling_one(int(args.scaling_one[0]), args.scaling_one[1])))
+        return 0
+    if args.scaling:
+        print("\n".join(scaling_table(args.links)))
+        return 0
     names = args.models or dynamics.list_models()
     print("\n".join(arm_table()))
     print()

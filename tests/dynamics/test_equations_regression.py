@@ -97,7 +97,14 @@ def _reference() -> dict[str, dict[str, np.ndarray]]:
     return ref
 
 
-@pytest.mark.parametrize("name", names())
+def _cases():
+    """Registered models in the fast suite; the examples' models (compiled cold only here,
+    linearisation and all: several seconds each) with -m slow."""
+    slow = pytest.mark.slow
+    return dynamics.list_models() + [pytest.param(n, marks=slow) for n in EXAMPLES.values()]
+
+
+@pytest.mark.parametrize("name", _cases())
 def test_equations_equal_the_reference(name):
     ref = _reference()[name]
     system = _model(name).compile()
