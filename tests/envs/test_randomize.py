@@ -205,3 +205,19 @@ def test_lqr_keeps_the_nominal_model():
     policy, reference = LQRPolicy(env), LQRPolicy(plain)
     assert policy.system.parameters == nominal
     assert np.array_equal(policy.design(x0, u0).K, reference.design(x0, u0).K)
+
+
+def test_threads_step_per_copy_parameters_as_one_thread_does():
+    """Blocks of rows spread over threads (no fused step) read each row's own values."""
+    n = 130  # more than one block of 64 rows
+    values = np.linspace(0.05, 0.12, n)
+    pair = [_vec(ARM, n, randomize={}, num_threads=t) for t in (1, 2)]
+    assert pair[1].unwrapped._rt._fused is None
+    out = []
+    for vec in pair:
+        vec.reset(seed=2, options={"params": {"Ibar2": values}})
+        a = np.full(vec.action_space.shape, 0.3, dtype=np.float32)
+        for _ in range(5):
+            obs = vec.step(a)[0]
+        out.append(obs)
+    assert np.array_equal(out[0], out[1])
