@@ -1,6 +1,6 @@
 """Speed and accuracy of the Lagrange environments against Gymnasium's Acrobot-v1.
 
-    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick]
+    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick] [--per-copy] [--sizes N ...]
 
 Measured in one run, so the ratios hold on a shared machine even when absolute figures
 move: `gymnasium.make` time per id (warm model cache; numba's import, paid once per process,
@@ -247,6 +247,44 @@ def vector_table(sizes, seconds: float, rounds: int = 3) -> None:
         print(f"| {env_id} | {evaluations(gym.make(env_id).unwrapped)} | " + " | ".join(row) + " |")
 
 
+def per_copy_table(sizes, seconds: float, rounds: int = 5) -> None:
+    """The cost of per-copy model parameters (`randomize=`) against parameters shared by
+    every copy: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
+    `gymnasium.make` and the native vector env at each N, in alternating rounds (the ratio
+    taken within each round, medians)."""
+    arm_id = "Lagrange/TwoLinkArm-v1"
+    inertial = {"Ibar1": (0.75 / 12, 1.25 / 12), "Ibar2": (0.75 / 12, 1.25 / 12)}
+    rng = np.random.default_rng(0)
+    print("\n| TwoLinkArm-v1, one thread | shared parameters (env-steps/s) "
+          "| per-copy parameters | per-copy / shared (same rounds) |")  # fmt: skip
+    print("|---|---|---|---|")
+    single = {k: gym.make(arm_id, **opts) for k, opts in
+              (("shared", {}), ("per-copy", {"randomize": inertial}))}  # fmt: skip
+    actions = rng.uniform(-1, 1, (1000, 2)).astype(np.float32)
+    runs = {k: [] for k in single}
+    for _ in range(rounds):
+        for k, env in single.items():
+            runs[k].append(steps_per_second(env, actions, seconds / rounds))
+    _per_copy_row("single env (gymnasium.make)", runs)
+    for n in sizes:
+        steppers = {
+            k: vector_stepper(gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point",
+                                           num_threads=1, **opts))
+            for k, opts in (("shared", {}), ("per-copy", {"randomize": inertial}))
+        }  # fmt: skip
+        runs = {k: [] for k in steppers}
+        for _ in range(rounds):
+            for k, step in steppers.items():
+                runs[k].append(rate(step, n, seconds / rounds))
+        _per_copy_row(f"native vector env, N = {n}", runs)
+
+
+def _per_copy_row(label: str, runs: dict) -> None:
+    shared, per_copy = np.array(runs["shared"]), np.array(runs["per-copy"])
+    print(f"| {label} | {np.median(shared):,.0f} | {np.median(per_copy):,.0f} "
+          f"| {np.median(per_copy / shared):.3f} |")  # fmt: skip
+
+
 def vector_stepper(vec):
     """A vector env as a stepping function over pre-drawn actions (reset once)."""
     rng = np.random.default_rng(0)
@@ -268,8 +306,15 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter timings (noisier)")
     parser.add_argument("--sizes", type=int, nargs="*", default=list(SIZES))
+    parser.add_argument(
+        "--per-copy", action="store_true",
+        help="only the cost of per-copy parameters (randomize=) against shared ones",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     seconds = 0.5 if args.quick else 2.0
+    if args.per_copy:
+        per_copy_table(args.sizes, 2 * seconds)
+        return
 
     start = time.perf_counter()
     importlib.import_module("envs")  # numba and the runtime kernels: once per process

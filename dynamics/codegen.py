@@ -84,10 +84,12 @@ def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
     return lines
 
 
-def _lanes(n: int, nu: int, prog: Program, header: list[str]) -> str:
+def _lanes(n: int, nu: int, prog: Program, n_p: int, per_row: bool = False) -> str:
     """`derivative_lanes(T, XS, U, p, D)`: D = dx/dt for rows held as columns (XS (2n, m),
     U (n_u, m), T (m,)), one straight-line body per row with no calls, so that LLVM
-    evaluates several rows per instruction. The kernels' fixed-step integrators use it."""
+    evaluates several rows per instruction. The kernels' fixed-step integrators use it.
+    per_row: `derivative_lanes_p(T, XS, U, P, D)`, the same body reading each column's own
+    parameters from P (n_p, m), for copies stepped with their own parameter values."""
     matrix, rhs = prog.results["kkt"], prog.results["rhs"]
     k = len(rhs)
     printer = _LanePrinter({"fully_qualified_modules": True})
@@ -98,6 +100,7 @@ def _lanes(n: int, nu: int, prog: Program, header: list[str]) -> str:
     names = [f"a{i}_{j}" for i, j in upper if nonzero[i][j]]
     names += [f"r{i}" for i in range(k)]
     body = ["t = T[b]"]
+    body += [f"p{k} = P[{k}, b]" for k in range(n_p)] if per_row else []
     body += [f"q{i} = XS[{i}, b]" for i in range(n)] + [f"qd{i} = XS[{n + i}, b]" for i in range(n)]
     body += [f"u{j} = U[{j}, b]" for j in range(nu)]
     body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in prog.needed(exprs)]
@@ -109,9 +112,11 @@ def _lanes(n: int, nu: int, prog: Program, header: list[str]) -> str:
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def derivative_lanes(T, XS, U, p, D):",
+        "def derivative_lanes_p(T, XS, U, P, D):"
+        if per_row
+        else "def derivative_lanes(T, XS, U, p, D):",
     ]
-    lines += ["    " + h for h in header]
+    lines += [] if per_row else [f"    p{k} = p[{k}]" for k in range(n_p)]
     lines.append("    for b in range(XS.shape[1]):")
     lines += ["        " + line for line in body]
     return "\n".join(lines)
@@ -272,6 +277,7 @@ def generate(d: Derived, key: str) -> str:
             ]
         )
     )
-    parts.append(_lanes(n, nu, prog, unpack_p))
+    parts.append(_lanes(n, nu, prog, len(spec.parameters)))
+    parts.append(_lanes(n, nu, prog, len(spec.parameters), per_row=True))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

@@ -235,12 +235,25 @@ def erk_rows(T, X, U, p, h, substeps, a, w, c, out, lo, hi):
     `derivative_lanes` evaluates them in vector lanes, and each row's arithmetic is the
     same whatever rows share its block (results do not depend on blocking or threads).
     Constrained models are projected onto their velocity constraints after every step."""
+    erk_rows_of(T, X, U, p, p.reshape((1, p.shape[0])), False, h, substeps, a, w, c, out, lo, hi)
+
+
+@njit(cache=True, error_model="numpy")
+def erk_rows_of(T, X, U, p, P, per_row, h, substeps, a, w, c, out, lo, hi):
+    """`erk_rows` with the parameters p shared by every row, or (per_row) row r's own
+    parameters P[r]: the same operations on the same values, so a row with parameters P[r]
+    steps bit for bit as it would with p = P[r]."""
     m = hi - lo
     if m < LANES_FROM:
         for r in range(lo, hi):
-            erk_row(T, X, U, p, h, substeps, a, w, c, out, r)
+            erk_row(T, X, U, P[r] if per_row else p, h, substeps, a, w, c, out, r)
         return
     n2 = X.shape[1]
+    pc = np.empty((P.shape[1], m if per_row else 0))  # the block's parameters, as columns
+    if per_row:
+        for b in range(m):
+            for i in range(P.shape[1]):
+                pc[i, b] = P[lo + b, i]
     s_count = w.shape[0]
     x = np.empty((n2, m))
     xs = np.empty((n2, m))
@@ -259,7 +272,10 @@ def erk_rows(T, X, U, p, h, substeps, a, w, c, out, lo, hi):
             for b in range(m):
                 ts[b] = t[b] + c[s] * h
             if s == 0:
-                derivative_lanes(ts, x, u, p, k[0])
+                if per_row:
+                    derivative_lanes_p(ts, x, u, pc, k[0])
+                else:
+                    derivative_lanes(ts, x, u, p, k[0])
                 continue
             for i in range(n2):
                 for b in range(m):
@@ -271,7 +287,10 @@ def erk_rows(T, X, U, p, h, substeps, a, w, c, out, lo, hi):
                             xs[i, b] += f * k[j, i, b]
                 for b in range(m):
                     xs[i, b] = x[i, b] + h * xs[i, b]
-            derivative_lanes(ts, xs, u, p, k[s])
+            if per_row:
+                derivative_lanes_p(ts, xs, u, pc, k[s])
+            else:
+                derivative_lanes(ts, xs, u, p, k[s])
         for i in range(n2):
             for b in range(m):
                 xs[i, b] = 0.0
@@ -285,7 +304,10 @@ def erk_rows(T, X, U, p, h, substeps, a, w, c, out, lo, hi):
         for b in range(m):
             t[b] += h
         if N_C:
-            project_columns(t, x, p)
+            if per_row:
+                project_columns_of(t, x, P, lo)
+            else:
+                project_columns(t, x, p)
     for b in range(m):
         for i in range(n2):
             out[lo + b, i] = x[i, b]
@@ -354,6 +376,66 @@ def project_columns(t, x, p):
         project(t[b], row, p, A, z)
         for i in range(N_Q, x.shape[0]):
             x[i, b] = row[i]
+
+
+@njit(cache=True, error_model="numpy")
+def project_columns_of(t, x, P, lo):
+    """`project_columns` with each column b's own parameters P[lo + b]."""
+    A = np.empty((K, K + 1))  # a spare column for solve
+    z = np.empty(K)
+    row = np.empty(x.shape[0])
+    for b in range(x.shape[1]):
+        for i in range(x.shape[0]):
+            row[i] = x[i, b]
+        project(t[b], row, P[lo + b], A, z)
+        for i in range(N_Q, x.shape[0]):
+            x[i, b] = row[i]
+
+
+@njit(cache=True, error_model="numpy")
+def erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, block):
+    """`erk_batch` with each row's own parameters P (N, n_p)."""
+    n = X.shape[0]
+    for j in range((n + block - 1) // block):
+        erk_rows_of(T, X, U, P[0], P, True, h, substeps, a, w, c, out, j * block,
+                    min(n, (j + 1) * block))  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, block):
+    """`erk_batch_rows` with the blocks spread over numba's threads."""
+    n = X.shape[0]
+    for j in prange((n + block - 1) // block):
+        erk_rows_of(T, X, U, P[0], P, True, h, substeps, a, w, c, out, j * block,
+                    min(n, (j + 1) * block))  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy")
+def outputs_batch_rows(T, X, U, P, out):
+    """`outputs_batch` with each row's own parameters P (N, n_p)."""
+    for b in range(X.shape[0]):
+        outputs_batch(T[b : b + 1], X[b : b + 1], U[b : b + 1], P[b], out[b : b + 1])
+
+
+@njit(cache=True, error_model="numpy")
+def energy_batch_rows(T, X, P, out):
+    """`energy_batch` with each row's own parameters P (N, n_p)."""
+    for b in range(X.shape[0]):
+        energy_terms(T[b], X[b], P[b], out[b])
+
+
+@njit(cache=True, error_model="numpy")
+def residual_batch_rows(T, X, P, out):
+    """`residual_batch` with each row's own parameters P (N, n_p)."""
+    for b in range(X.shape[0]):
+        residual(T[b], X[b], P[b], out[b])
+
+
+@njit(cache=True, error_model="numpy")
+def project_batch_rows(T, X, P, out):
+    """`project_batch` with each row's own parameters P (N, n_p)."""
+    for b in range(X.shape[0]):
+        project_batch(T[b : b + 1], X[b : b + 1], P[b], out[b : b + 1])
 
 
 @njit(cache=True, error_model="numpy")

@@ -225,6 +225,33 @@ class System:
         else:
             self._m.erk_batch(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
 
+    def step_rows_unchecked(
+        self, T, X, U, P, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
+        num_threads: int = 1,
+    ) -> None:  # fmt: skip
+        """`step_unchecked` with each row's own parameter values P (N, len(parameters)),
+        contiguous float64, columns in the order of `parameters`: a row steps bit for bit
+        as it would in a System with those values. Unchecked (P too)."""
+        a, w, c = method_tableau(method)
+        h = dt / substeps
+        if num_threads > 1 and X.shape[0] > BLOCK:
+            numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
+            self._m.erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
+        else:
+            self._m.erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
+
+    def check_parameter_rows(self, values: dict) -> None:
+        """ValueError naming the problem unless every row of `values` (name -> (N,) array)
+        gives valid parameters: known names, finite, positive where the model says so, and
+        the model's conditions."""
+        n = len(next(iter(values.values()))) if values else 0
+        for b in range(n):
+            given = {k: v[b] for k, v in values.items()}
+            p = check_parameters(self.name, self._m.PARAMETERS, self._p, self._m.POSITIVE, given)
+            for statement, value in zip(self._m.CONDITIONS, self._m.conditions(p)):
+                if not value > 0:
+                    raise ValueError(f"{self.name}: parameters violate {statement} ({given}).")
+
     def kernels(self) -> tuple[ModuleType, np.record]:
         """(module, parameters): the generated module of numba kernels (its `KEY` hashes all
         of its code) and the parameter record they take, for code that calls them from its

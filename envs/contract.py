@@ -44,6 +44,28 @@ def horizon(env, task: Task) -> int:
     return int(task.max_episode_steps if steps is None else steps)
 
 
+def start(rt: Runtime, rngs, options: dict | None, rows: list[int], batch: int | None):
+    """(states, goals, (parameters, given) or None) that `rows` of `rt` start an episode
+    with, changing nothing: the parameters first (`Plant.draw_params`: drawn where
+    randomised, from each row's generator), then the starting states and goals
+    (`Plant.start_rows`). Values once given by options['params'] hold for a copy's later
+    resets until a reset with options['params'] replaces them ({} frees them all)."""
+    params, given = rt.plant.draw_params(rngs, options, rows, batch)
+    if params is not None and given is None:  # the values given before still hold
+        params = np.where(rt.given[rows], rt.P[rows], params)
+    x, g = rt.plant.start_rows(rngs, options, rows, batch, params)
+    return x, g, None if params is None else (params, given)
+
+
+def begin(rt: Runtime, rows: list[int], x, g, params) -> None:
+    """Put `rows` of `rt` at the start `start` gave (their parameters, then their states)."""
+    if params is not None:
+        rt.set_params(rows, params[0])
+        if params[1] is not None:
+            rt.given[rows] = params[1]
+    rt.reset_rows(rows, x, g)
+
+
 def start_rows(plant: Plant, rngs, options: dict | None, rows: list[int], batch: int | None):
     """`plant.start_rows` (kept for callers of the former function)."""
     return plant.start_rows(rngs, options, rows, batch)

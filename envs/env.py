@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import rendering
-from .contract import ContractMixin, horizon, make_runtime, real_array
+from .contract import ContractMixin, begin, horizon, make_runtime, real_array, start
 from .runtime import NonFiniteActions
 from .task import Task
 
@@ -27,8 +27,9 @@ class LagrangianEnv(ContractMixin, gym.Env):
                            kwargs={"task": TASK}, max_episode_steps=TASK.max_episode_steps)
 
     `info` carries the physical state, the applied model inputs, the energy, the reward
-    terms (clipped into their bounds), `is_success`, `diverged` and, for constrained
-    models, the constraint residual.
+    terms (clipped into their bounds), `is_success`, `diverged`, for constrained
+    models the constraint residual and, with `randomize=`, the model parameters in force
+    (`params`).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"]}
@@ -69,13 +70,13 @@ class LagrangianEnv(ContractMixin, gym.Env):
         state = None if self._np_random is None else self._np_random.bit_generator.state
         super().reset(seed=None if seed is None else int(seed))
         try:
-            x, g = self._rt.plant.start_rows([self.np_random], options, [0], None)
+            x, g, params = start(self._rt, [self.np_random], options, [0], None)
         except (TypeError, ValueError):  # refused options leave the generator as it was
             self._np_random, self._np_random_seed = before
             if state is not None:
                 self._np_random.bit_generator.state = state
             raise
-        self._rt.reset_rows([0], x, g)
+        begin(self._rt, [0], x, g, params)
         self._ready = True
         self._history = []
         if self.render_mode == "human":
@@ -120,6 +121,8 @@ class LagrangianEnv(ContractMixin, gym.Env):
             info["diverged"] = diverged
         if self.system.n_c:
             info["constraint_residual"] = rt.constraint_residual()[0]
+        if rt.per_row:  # randomised: the model parameters this copy steps with
+            info["params"] = rt.params(0)
         return info
 
     # ---- rendering -------------------------------------------------------------------------

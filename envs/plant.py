@@ -14,6 +14,7 @@ action scaling, and the env's own step (`step`; a batched simulator of it is
 from __future__ import annotations
 
 import difflib
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache, cached_property
@@ -37,6 +38,9 @@ ENV_OPTIONS = {
     "integrator": "'dop853' or 'rk4' (default: the task's)",
     "num_threads": "threads stepping a vector env's copies (default 1; same results)",
     "max_input": "input limits: one number, or one per actuated input, each a bound or (low, high)",
+    "randomize": "model parameters drawn at every reset of each copy, {name: (low, high)} "
+    "(uniform, absolute values); {} steps each copy with its own values, set by "
+    "reset(options={'params': ...}) (default None: every copy has the env's values)",
 }
 """The env options besides the model's parameters (by name), with what they mean."""
 
@@ -125,6 +129,9 @@ class Plant:
     integrator: str = "dop853"
     num_threads: int = 1
     options: dict = field(default_factory=dict)  # the options it was built with
+    # name -> (low, high) drawn at each reset, or None: every copy steps with `system`'s
+    # values (the task functions' record `p` is always `system`'s: the nominal values)
+    randomize: dict | None = None
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:
@@ -149,6 +156,9 @@ class Plant:
         method_tableau(plant.integrator)  # ValueError naming the known integrators
         threads = get("num_threads")
         plant.num_threads = 1 if threads is None else positive_int("num_threads", threads)
+        if get("randomize") is not None:
+            plant.randomize = checked_ranges(plant.system, get("randomize"))
+            _warn_nominal(plant, options, opts.get("max_input"))
         return plant
 
     @property
@@ -356,19 +366,24 @@ class Plant:
                     f"Goal component {name!r} must lie in [{lo:.6g}, {hi:.6g}], got {g[j]:.6g}."
                 )
 
-    def start_rows(self, rngs, options: dict | None, rows: list[int], batch: int | None):
+    def start_rows(
+        self, rngs, options: dict | None, rows: list[int], batch: int | None, params=None
+    ):
         """Starting states and goals of `rows`: options['state'] / options['goal'] where
         given (checked: shape, finite, state within the task's limits, goal within its
         ranges), else drawn from the task's start distribution with each row's generator.
         Options are checked before any generator draws. Constrained models' states are
-        projected onto their velocity constraints."""
+        projected onto their velocity constraints (with each row's parameters `params`,
+        (len(rows), n_p), where given)."""
         system = self.system
         options = options or {}
         if not isinstance(options, dict):
             raise TypeError(f"reset options must be a dict, got {type(options).__name__}.")
-        unknown = set(options) - {"state", "goal"}
+        unknown = set(options) - {"state", "goal", "params"}
         if unknown:
-            raise ValueError(f"Unknown reset option(s) {sorted(unknown)}; known: 'state', 'goal'.")
+            raise ValueError(
+                f"Unknown reset option(s) {sorted(unknown)}; known: 'state', 'goal', 'params'."
+            )
         x_given = g_given = None
         if options.get("state") is not None:
             x_given = checked_rows(
@@ -392,9 +407,146 @@ class Plant:
         g = np.array([d[1] for d in drawn]).reshape(len(rows), len(self.goal_names))
         x = x if x_given is None else x_given
         g = g if g_given is None else g_given
-        if system.n_c:
+        if system.n_c and params is not None:  # onto each row's own constraints
+            x = np.array([
+                system.with_parameters(**dict(zip(system.parameters, row))).project(xi)
+                for xi, row in zip(x, params)
+            ]).reshape(x.shape)  # fmt: skip
+        elif system.n_c:
             x = system.project(x)
         return x, g
+
+    def draw_params(self, rngs, options: dict | None, rows: list[int], batch: int | None):
+        """(parameters, given): the parameters (len(rows), n_p) `rows` start with,
+        columns in the order of `system.parameters`, and which of them options['params']
+        gave (bool, the same shape; None without that option), or (None, None) when the
+        plant declares no randomisation. For each row every declared parameter is drawn
+        uniformly from its range with the row's generator (absolute values: a reset never
+        compounds), then options['params'] (name -> a number for every row, or one per
+        copy) where given (checked); the env's own values for the rest."""
+        system = self.system
+        given = (options or {}).get("params") if isinstance(options, dict) else None
+        if self.randomize is None:
+            if given is not None:
+                raise ValueError(
+                    "reset option 'params' needs an env made with randomize= (e.g. "
+                    "randomize={} for exact values only, or {'m2': (0.8, 1.2)})."
+                )
+            return None, None
+        names = list(system.parameters)
+        values = {}
+        if given is not None:
+            if not isinstance(given, Mapping):
+                raise TypeError(
+                    f"options['params'] must be a dict {{name: value}}, got {type(given).__name__}."
+                )
+            for key, v in given.items():
+                _parameter_name(system, key, "options['params']")
+                v = np.asarray(real_array(v, f"options['params'][{key!r}]"), dtype=np.float64)
+                if v.ndim == 0:
+                    v = np.full(len(rows), float(v))
+                elif batch is None or v.shape != (batch,):
+                    raise ValueError(
+                        f"options['params'][{key!r}] must be a number"
+                        + (f" or an array of shape ({batch},)" if batch else "")
+                        + f", got shape {v.shape}."
+                    )
+                else:
+                    v = v[rows]
+                values[key] = v
+            if values:
+                system.check_parameter_rows(values)
+        out = np.tile(system.kernels()[1], (len(rows), 1))
+        for k, i in enumerate(rows):
+            for name, (lo, hi) in self.randomize.items():
+                out[k, names.index(name)] = rngs[i].uniform(lo, hi)
+        pins = None if given is None else np.zeros(out.shape, dtype=bool)
+        for name, v in values.items():
+            out[:, names.index(name)] = v
+            pins[:, names.index(name)] = True
+        return out, pins
+
+
+def _parameter_name(system, key, where: str) -> None:
+    """ValueError (with a "Did you mean") unless `key` is a parameter of `system`."""
+    known = list(system.parameters)
+    if key not in known:
+        close = difflib.get_close_matches(str(key), known, n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        raise ValueError(
+            f"{where}: {key!r} is not a parameter of {system.name}.{hint} "
+            f"Known: {', '.join(known)}."
+        )
+
+
+def checked_ranges(system, value) -> dict[str, tuple[float, float]]:
+    """The `randomize` option checked: {parameter name: (low, high)}, finite, low <= high,
+    low > 0 for a parameter the model declares positive, and the model's conditions met
+    at the corners of the ranges (so a draw is never physically impossible there)."""
+    if not isinstance(value, Mapping):
+        raise TypeError(
+            f"randomize must be a dict {{parameter: (low, high)}}, got {type(value).__name__}."
+        )
+    module = system.kernels()[0]
+    positive = dict(zip(module.PARAMETERS, module.POSITIVE))
+    ranges = {}
+    for key, pair in value.items():
+        _parameter_name(system, key, "randomize")
+        if (
+            isinstance(pair, (str, bytes))
+            or not isinstance(pair, (tuple, list, np.ndarray))
+            or len(pair) != 2
+        ):
+            raise ValueError(
+                f"randomize[{key!r}] must be a (low, high) pair of numbers, got {pair!r}."
+            )
+        lo, hi = (float(v) for v in real_array(pair, f"randomize[{key!r}]"))
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise ValueError(f"randomize[{key!r}] must be finite with low <= high, got {pair!r}.")
+        if positive[key] and not lo > 0:
+            raise ValueError(
+                f"randomize[{key!r}] = {pair!r} would draw impossible values: {key} of "
+                f"{system.name} must be positive, so low must be > 0."
+            )
+        ranges[key] = (lo, hi)
+    names = list(ranges)
+    every = len(names) <= 10  # every corner; beyond, all lows and all highs
+    for c in range(2 ** len(names)) if every else range(2):
+        corner = {k: ranges[k][(c >> j) & 1 if every else c] for j, k in enumerate(names)}
+        try:
+            system.check_parameter_rows({k: [v] for k, v in corner.items()})
+        except ValueError as exc:
+            raise ValueError(f"randomize {value!r} reaches invalid parameters: {exc}") from None
+    return ranges
+
+
+_RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_low", "obs_high",
+             "term_low", "term_high")  # fmt: skip
+
+
+def _warn_nominal(plant: Plant, params: dict, max_input) -> None:
+    """A warning naming the task's declared numbers (input limits, bounds, constants) that
+    depend on a randomised parameter: they keep their values at the env's parameters in
+    every copy (as the task functions' record `p` does), only the dynamics follow."""
+    for name, ends in plant.randomize.items():
+        changed = set()
+        for end in ends:
+            other = build_plant(plant.task, {**params, name: end}, max_input)
+            changed |= {k for k in _RESOLVED if not np.array_equal(getattr(other, k),
+                                                                    getattr(plant, k))}  # fmt: skip
+            changed |= {
+                f"constant {k!r}"
+                for k in plant.p.dtype.names
+                if k not in plant.system.parameters and other.p[k] != plant.p[k]
+            }
+        if changed:
+            warnings.warn(
+                f"Task {plant.task.name!r}: {', '.join(sorted(changed))} depend(s) on "
+                f"randomised {name!r}; they keep the env's values in every copy (only the "
+                "dynamics follow each copy's parameters).",
+                RuntimeWarning,
+                stacklevel=5,
+            )
 
 
 def _rates_from_constraints(system, x: np.ndarray, rates: list[int]) -> np.ndarray:

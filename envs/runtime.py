@@ -247,6 +247,12 @@ class Runtime:
         self._B = np.zeros(n * len(self._bools), dtype=np.bool_)
         self.steps = np.zeros(n, dtype=np.int64)
         self.O = np.zeros((n, layout.obs_size), dtype=np.float32)
+        # each row's own model parameters (columns: system.parameters), when the plant
+        # declares randomisation; else None and every row steps with the system's own
+        self.per_row = layout.randomize is not None
+        self.P = np.tile(s.kernels()[1], (n, 1)) if self.per_row else None
+        self.given = np.zeros(self.P.shape, dtype=bool) if self.per_row else None  # by reset
+        self._params: dict = {}  # `params` of a row (None: all), until `set_params`
         self._views()
         self._compile()
 
@@ -318,9 +324,11 @@ class Runtime:
         if not all(hasattr(f, "py_func") for f in compiled_functions.values()):
             return
         module, _ = self.system.kernels()
+        rows = self.per_row  # each row's own parameters: the kernels that read them so
         functions = {
-            "_apply": apply_actions, "_advance": advance, "_observe": observe,
-            "_finish": finish, "_erk": module.erk_batch, "_outputs": module.outputs_batch,
+            "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
+            "_erk": module.erk_batch_rows if rows else module.erk_batch,
+            "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
             **compiled_functions,
         }  # fmt: skip
         plan, self._fused_C, self._fused_K = self._plan()
@@ -399,7 +407,10 @@ class Runtime:
                              self.terminated, self.success, self._obs64, lay.obs_low,
                              self.O)  # fmt: skip
         module, self._p_model = self.system.kernels()
-        self._energy = _warm(module.energy_batch, self.T, self.X, self._p_model, self._E)
+        # what the model's kernels take as parameters: the system's, or each row's own
+        self._p_kernel = self.P if self.per_row else self._p_model
+        energy = module.energy_batch_rows if self.per_row else module.energy_batch
+        self._energy = _warm(energy, self.T, self.X, self._p_kernel, self._E)
         self._compile_fused(jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -407,16 +418,49 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0"):  # fmt: skip
+                  "_E0", "_p_kernel"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
         return state
 
     def __setstate__(self, state):
+        state.setdefault("per_row", False)  # pickled before per-row parameters
+        state.setdefault("P", None)
+        state.setdefault("given", None)
+        state.setdefault("_params", {})
         self.__dict__.update(state)
         self._views()
         self._compile()
+
+    # ---- parameters -----------------------------------------------------------------------
+    def set_params(self, rows, values: np.ndarray) -> None:
+        """Rows `rows` step from now on with parameters `values` (len(rows), n_p), columns
+        in the order of `system.parameters` (checked by the caller): a masked write,
+        nothing recompiled."""
+        if not self.per_row:
+            raise ValueError(
+                "This runtime steps every row with the system's parameters; build its plant "
+                "with randomize= (randomize={} for exact values only) for per-row values."
+            )
+        self.P[rows] = values
+        self._params = {}
+
+    def params(self, row: int | None = None) -> dict:
+        """The parameter values in force: name -> float of one row, or (N,) read-only
+        arrays (kept until `set_params`: a step's info costs no copies)."""
+        if row in self._params:
+            return dict(self._params[row])
+        names = list(self.system.parameters)
+        values = np.tile(self._p_model, (self.n, 1)) if self.P is None else self.P
+        if row is not None:
+            out = dict(zip(names, values[row].tolist()))
+        else:
+            out = {k: values[:, j].copy() for j, k in enumerate(names)}
+            for v in out.values():
+                v.flags.writeable = False
+        self._params[row] = out
+        return dict(out)
 
     # ---- the two operations --------------------------------------------------------------
     def reset_rows(self, rows, x: np.ndarray, g: np.ndarray) -> None:
@@ -453,17 +497,23 @@ class Runtime:
             if step is None:
                 step = self._bind_fused(actions)
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
-                        self._fused_K, self._p_model, lay.p,
+                        self._fused_K, self._p_kernel, lay.p,
                         -1 if horizon is None else horizon)  # fmt: skip
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
             return code > 0
         if not apply_actions(actions, lay.input_mid, lay.input_half, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
-        self.system.step_unchecked(
-            self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
-            self.integrator, self.num_threads,
-        )  # fmt: skip
+        if self.per_row:
+            self.system.step_rows_unchecked(
+                self.T, self.X, self.U, self.P, self.control_period, self.substeps,
+                self._X_next, self.integrator, self.num_threads,
+            )  # fmt: skip
+        else:
+            self.system.step_unchecked(
+                self.T, self.X, self.U, self.control_period, self.substeps, self._X_next,
+                self.integrator, self.num_threads,
+            )  # fmt: skip
         diverged = self._advance(self.X, self._X_next, lay.limits, self.diverged, self.T,
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
@@ -475,7 +525,7 @@ class Runtime:
         numba's cache on first use), bound as `bind` does."""
         f = actions.flags
         args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
-                self._p_model, self.plant.p, -1)  # fmt: skip
+                self._p_kernel, self.plant.p, -1)  # fmt: skip
         self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
         step = bind(self._fused, args)
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
@@ -504,7 +554,10 @@ class Runtime:
         lay = self.plant
         if not len(lay.output_index):
             return self.X
-        self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
+        if self.per_row:
+            self.system.kernels()[0].outputs_batch_rows(self.T, self.X, self.U, self.P, self._Y)
+        else:
+            self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
         n_x = self.system.state_size
         self._rows_x[:, :n_x] = self.X
         self._rows_x[:, n_x:] = self._Y[:, lay.output_index]
@@ -513,18 +566,21 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self._energy(self.T, self.X, self._p_model, self._E)
+        self._energy(self.T, self.X, self._p_kernel, self._E)
         return self._E.sum(axis=1)
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._energy(self.T, self.X, self._p_model, self._E)
+        self._energy(self.T, self.X, self._p_kernel, self._E)
         kinetic, potential = self._E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
-        self.system.constraint_residual_unchecked(self.T, self.X, self._C)
+        if self.per_row:
+            self.system.kernels()[0].residual_batch_rows(self.T, self.X, self.P, self._C)
+        else:
+            self.system.constraint_residual_unchecked(self.T, self.X, self._C)
         return self._C.copy()
 
     def reward_terms(self, row: int | None = None):

@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import rendering
-from .contract import ContractMixin, make_runtime, positive_int, real_array
+from .contract import ContractMixin, begin, make_runtime, positive_int, real_array, start
 from .env import LagrangianEnv, draw
 from .task import Task
 
@@ -97,13 +97,13 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         states = [r.bit_generator.state for r in rngs]
         rows = list(range(self.num_envs))
         try:
-            x, g = self._rt.plant.start_rows(rngs, options, rows, self.num_envs)
+            x, g, params = start(self._rt, rngs, options, rows, self.num_envs)
         except (TypeError, ValueError):  # refused options leave the generators as they were
             for r, state in zip(rngs, states):
                 r.bit_generator.state = state
             raise
         self._rngs = rngs
-        self._rt.reset_rows(rows, x, g)
+        begin(self._rt, rows, x, g, params)
         self._done[:] = False
         self._ready = True
         return self._rt.O.copy(), self._info(reset=True)
@@ -146,8 +146,8 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
 
     def _reset_rows(self, rows: np.ndarray) -> None:
         rows = rows.tolist()
-        x, g = self._rt.plant.start_rows(self._rngs, None, rows, self.num_envs)
-        self._rt.reset_rows(rows, x, g)
+        x, g, params = start(self._rt, self._rngs, None, rows, self.num_envs)
+        begin(self._rt, rows, x, g, params)
 
     def _info(self, reset: bool = False) -> dict[str, Any]:
         rt = self._rt
@@ -166,6 +166,9 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
             info["diverged"] = rt.diverged.copy()
         if self.system.n_c:
             info["constraint_residual"] = rt.constraint_residual()
+        if rt.per_row:  # randomised: the model parameters each copy steps with
+            params = rt.params()
+            info["params"] = {**params, **{"_" + k: every for k in params}}
         info.update({"_" + k: every for k in list(info)})
         return info
 

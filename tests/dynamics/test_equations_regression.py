@@ -101,7 +101,8 @@ def _cases():
     """Registered models in the fast suite; the examples' models (compiled cold only here,
     linearisation and all: several seconds each) with -m slow."""
     slow = pytest.mark.slow
-    return dynamics.list_models() + [pytest.param(n, marks=slow) for n in EXAMPLES.values()]
+    models = [n for n in dynamics.list_models() if n not in NO_REFERENCE]
+    return models + [pytest.param(n, marks=slow) for n in EXAMPLES.values()]
 
 
 @pytest.mark.parametrize("name", _cases())
