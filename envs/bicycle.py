@@ -37,7 +37,7 @@ steer by the constraints, so the full linearisation cannot be cut down to the ob
 and steer states exactly. The `heuristic` baseline is the LQR that belongs here: a
 speed-scheduled LQR on (phi, delta, phi', delta') from the constraint-reduced linearisation
 (`dynamics.bicycle.reduced_linearization`) at v*, plus proportional speed control on T_R
-(`agents.policies.BicycleLQRPolicy`).
+(`agents.bicycle_policy.BicycleLQRPolicy`).
 
 ## Action Space
 `Box(-1, 1, (2,), float32)`; action -1 and 1 are the input's limits (`max_input`,
@@ -282,7 +282,7 @@ TASK = Task(
         scales={"phi": 0.05, "delta": 0.1, "phi_dot": 0.5, "delta_dot": 1.0},
     ),
     heuristic=Heuristic(
-        "speed-scheduled LQR on lean and steer", "agents.policies:BicycleLQRPolicy"
+        "speed-scheduled LQR on lean and steer", "agents.bicycle_policy:BicycleLQRPolicy"
     ),
     hyperparams={
         "ppo": {
