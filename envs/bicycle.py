@@ -102,7 +102,8 @@ per 50 ms step (the fastest uncontrolled mode, the castering mode, is below 20 1
 velocity constraints.
 
 ## Version History
-* v0: initial version.
+* v0: initial version (the heuristic LQR 100 % success over 100 episodes, zero torque 54 %,
+  PPO 100 % at 500k steps, seeds 0 and 1).
 """
 
 from __future__ import annotations
