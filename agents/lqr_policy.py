@@ -176,7 +176,17 @@ class LQRPolicy:
         key = x0.tobytes() + u0.tobytes()
         d = self._designs.get(key)
         if d is None:
-            lin = linearize(self.system, x0, u0, self.states)
+            try:
+                lin = linearize(self.system, x0, u0, self.states)
+            except ValueError as exc:
+                if not self.system.n_c:
+                    raise
+                raise Unsupported(
+                    f"LQR on {list(self.states)} of task {self.env.task.name!r}: {exc} The "
+                    f"constraints of {self.system.name} tie the dropped components to the kept "
+                    "ones, so no exact cut of the full linearisation exists; reduce it on the "
+                    "constraint manifold instead (the task's heuristic baseline, if declared)."
+                ) from exc
             lin = LinearModel(
                 lin.A, lin.B @ self._S, x0, u0, lin.states, _action_names(self), lin.index
             )

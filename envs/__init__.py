@@ -57,7 +57,7 @@ def register(env_id: str, task: Task, **kwargs) -> None:
 
 def _register_builtins() -> tuple[str, ...]:
     """Register every built-in version; return the current one of each task."""
-    from . import acrobot, arm, bead, crank, disk
+    from . import acrobot, arm, bead, bicycle, crank, disk
 
     current = {
         "Lagrange/TwoLinkArm-v1": arm.TASK,
@@ -65,6 +65,7 @@ def _register_builtins() -> tuple[str, ...]:
         "Lagrange/RollingDisk-v1": disk.TASK,
         "Lagrange/BeadOnRod-v1": bead.TASK,
         "Lagrange/CrankSlider-v1": crank.TASK,
+        "Lagrange/Bicycle-v0": bicycle.TASK,
     }
     older = {"Lagrange/Acrobot-v1": acrobot.TASK}  # the 3 N*m elbow: hard, kept to compare
     for env_id, task in {**current, **older}.items():

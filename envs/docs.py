@@ -21,7 +21,7 @@ from dynamics.cache import write_atomic
 from .plant import Plant
 from .task import Task
 
-MODULES = ("envs.arm", "envs.acrobot", "envs.disk", "envs.bead", "envs.crank")
+MODULES = ("envs.arm", "envs.acrobot", "envs.disk", "envs.bead", "envs.crank", "envs.bicycle")
 
 
 def describe(task: Task, **params) -> str:

@@ -525,8 +525,8 @@ _RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_
 
 
 def _warn_nominal(plant: Plant, params: dict, max_input) -> None:
-    """A warning naming the task's declared numbers (input limits, bounds, constants) that
-    depend on a randomised parameter: they keep their values at the env's parameters in
+    """A warning naming the task's declared numbers (input limits, bounds, constants, the
+    start distribution) that depend on a randomised parameter: they keep their values at the env's parameters in
     every copy (as the task functions' record `p` does), only the dynamics follow."""
     for name, ends in plant.randomize.items():
         changed = set()
@@ -539,6 +539,9 @@ def _warn_nominal(plant: Plant, params: dict, max_input) -> None:
                 for k in plant.p.dtype.names
                 if k not in plant.system.parameters and other.p[k] != plant.p[k]
             }
+            drawn = [p.sample_start(np.random.default_rng(0)) for p in (plant, other)]
+            if not all(np.array_equal(a, b) for a, b in zip(*drawn)):
+                changed.add("start")
         if changed:
             warnings.warn(
                 f"Task {plant.task.name!r}: {', '.join(sorted(changed))} depend(s) on "
