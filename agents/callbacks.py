@@ -29,6 +29,7 @@ from .curves import CurveLogger
 from .hparams import algo_kwargs, algorithms
 from .rundir import CHECKPOINT_PREFIX, companion
 
+
 def _crossed(before: int, now: int, every: int) -> bool:
     """True when the timestep count passed a multiple of `every` going from before to now."""
     return now // every > before // every

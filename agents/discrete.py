@@ -9,6 +9,7 @@ import numpy as np
 
 from .common import lagrange_env
 
+
 def action_matrix(env) -> np.ndarray:
     """S (n_u, n_a): the model inputs u = S a of normalised actions a."""
     n_a = len(env.plant.actuated)

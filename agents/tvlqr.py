@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .common import lagrange_env
-from .lqr_policy import LQRPolicy, refuse_time_dependent
 from .discrete import action_matrix, env_step, env_tableau, step_jacobians
 from .ilqr import Plan, PlanError, plan
+from .lqr_policy import LQRPolicy, refuse_time_dependent
 
 __all__ = ["PlanPolicy", "Tracker", "tvlqr"]
 

@@ -526,8 +526,9 @@ _RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_
 
 def _warn_nominal(plant: Plant, params: dict, max_input) -> None:
     """A warning naming the task's declared numbers (input limits, bounds, constants, the
-    start distribution) that depend on a randomised parameter: they keep their values at the env's parameters in
-    every copy (as the task functions' record `p` does), only the dynamics follow."""
+    start distribution) that depend on a randomised parameter: they keep their values at
+    the env's parameters in every copy (as the task functions' record `p` does), only the
+    dynamics follow."""
     for name, ends in plant.randomize.items():
         changed = set()
         for end in ends:

@@ -16,8 +16,8 @@ from stable_baselines3 import PPO, SAC
 
 import envs
 from agents import train as train_mod
-from agents.common import UserError, atomic_path
 from agents.callbacks import load_replay_buffer, save_replay_buffer
+from agents.common import UserError, atomic_path
 from agents.rundir import is_stale_temporary, latest_checkpoint
 from agents.train import TrainingInterrupted, train
 
