@@ -8,6 +8,11 @@ import sys
 from .model import get_model, list_models
 
 
+DISPLAY_LIMIT = 20_000
+"""Models whose M and F (as generated) have more nodes than this are not simplified for
+display: that takes hours (the bicycle's have 111,626)."""
+
+
 def show(name: str, latex: bool = False) -> str:
     """The derived equations of model `name` as text (pretty) or LaTeX."""
     import sympy as sp
@@ -28,6 +33,16 @@ def show(name: str, latex: bool = False) -> str:
         + ", ".join(f"{k} = {v:g} {model.units[k]}" for k, v in model.parameters.items())
     )
     lines.append("")
+    from .calculus import size
+
+    nodes = sum(size(e) for e in (*d.code.mass, *d.code.forcing))
+    if nodes > DISPLAY_LIMIT:
+        lines.append(
+            f"Lagrange's equations: M and F run to {nodes:,} nodes, too large to simplify and "
+            "print; the compiled model evaluates them (System.linearize gives their "
+            "linearisation; for the bicycle, `python -m dynamics.bicycle`)."
+        )
+        return "\n".join(lines)
     lines.append("Lagrange's equations (each = 0):")
     for eq in model.equations():
         lines.append(fmt(eq))

@@ -1,6 +1,8 @@
 """`python -m dynamics list|show`."""
 
-from dynamics.__main__ import main
+import pytest
+
+from dynamics.__main__ import main, show
 
 
 def test_list_names_every_model(capsys):
@@ -33,3 +35,10 @@ def test_cache_command_lists_compiled_models(capsys, monkeypatch, tmp_path):
     assert "1 compiled models" in capsys.readouterr().out
     assert main(["cache", "--clear"]) == 0
     assert not list(tmp_path.glob("*.py"))
+
+
+@pytest.mark.slow
+def test_show_says_why_it_does_not_print_the_bicycles_equations():
+    # simplifying 111,626 nodes for display would take hours; the command says so instead
+    out = show("whipple_bicycle")
+    assert "too large to simplify and print" in out and "python -m dynamics.bicycle" in out
