@@ -7,7 +7,6 @@ import sys
 
 from .model import get_model, list_models
 
-
 DISPLAY_LIMIT = 20_000
 """Models whose M and F (as generated) have more nodes than this are not simplified for
 display: that takes hours (the bicycle's have 111,626)."""
