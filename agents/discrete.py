@@ -38,10 +38,9 @@ def env_tableau(env) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def env_step(env, x, u, t=0.0) -> np.ndarray:
-    """One control period of the env's own integration (method and substeps), batched."""
-    method = getattr(env, "integrator", None)
-    kw = {} if method is None else {"method": method}
-    return env.system.step(x, u, float(env.control_period), env.substeps, t, **kw)
+    """One control period of the env's own integration (method and substeps), batched:
+    the bound plant's step (`envs.plant.Plant.step`)."""
+    return env.plant.step(x, u, t)
 
 
 def rollout(env, start, actions, t0: float = 0.0) -> np.ndarray:
