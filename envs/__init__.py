@@ -23,6 +23,7 @@ from dynamics import wrap
 
 from . import docs  # noqa: F401  (envs.docs.describe; also the former Task.describe)
 from .env import LagrangianEnv
+from .randomize import Choice, LogUniform, TruncNormal, Uniform
 from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 from .vector import LagrangianVectorEnv
 
@@ -79,14 +80,18 @@ __all__ = [
     "ENV_IDS",
     "Angle",
     "AngleError",
+    "Choice",
     "Derived",
     "Goal",
     "Heuristic",
     "LQRHints",
     "LagrangianEnv",
     "LagrangianVectorEnv",
+    "LogUniform",
     "Task",
     "Term",
+    "TruncNormal",
+    "Uniform",
     "Value",
     "register",
     "wrap",

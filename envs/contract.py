@@ -12,6 +12,7 @@ import numpy as np
 
 from .checks import checked_rows, positive_float, positive_int, real_array
 from .plant import Plant
+from .randomize import draw_params, redraw_due
 from .runtime import Runtime
 from .task import Task
 
@@ -44,13 +45,17 @@ def horizon(env, task: Task) -> int:
     return int(task.max_episode_steps if steps is None else steps)
 
 
-def start(rt: Runtime, rngs, options: dict | None, rows: list[int], batch: int | None):
+def start(rt: Runtime, rngs, options: dict | None, rows: list[int], batch: int | None,
+          seeded: bool = False):  # fmt: skip
     """(states, goals, (parameters, given) or None) that `rows` of `rt` start an episode
-    with, changing nothing: the parameters first (`Plant.draw_params`: drawn where
-    randomised, from each row's generator), then the starting states and goals
+    with, changing nothing: the parameters first (`envs.randomize.draw_params`: drawn where
+    randomised, from each row's generator; those drawn once only at a row's first reset
+    or a reset given a seed, `seeded`), then the starting states and goals
     (`Plant.start_rows`). Values once given by options['params'] hold for a copy's later
     resets until a reset with options['params'] replaces them ({} frees them all)."""
-    params, given = rt.plant.draw_params(rngs, options, rows, batch)
+    first = None if rt.drawn is None else (rt.drawn[rows] == 0) | seeded
+    current = None if rt.P is None else rt.P[rows]
+    params, given = draw_params(rt.plant, rngs, options, rows, batch, current, first)
     if params is not None and given is None:  # the values given before still hold
         params = np.where(rt.given[rows], rt.P[rows], params)
     x, g = rt.plant.start_rows(rngs, options, rows, batch, params)
@@ -61,9 +66,17 @@ def begin(rt: Runtime, rows: list[int], x, g, params) -> None:
     """Put `rows` of `rt` at the start `start` gave (their parameters, then their states)."""
     if params is not None:
         rt.set_params(rows, params[0])
+        rt.drawn[rows] = True
         if params[1] is not None:
             rt.given[rows] = params[1]
     rt.reset_rows(rows, x, g)
+
+
+def redraw(rt: Runtime, rngs, mask=None) -> None:
+    """After a step: the mid-episode redraws (`when=k`) due in `rt`'s copies (where
+    `mask`), from their generators (`envs.randomize.redraw_due`)."""
+    if rt.plant.randomize is not None and rt.plant.randomize.intervals:
+        redraw_due(rt, rngs, mask)
 
 
 def start_rows(plant: Plant, rngs, options: dict | None, rows: list[int], batch: int | None):

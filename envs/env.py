@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import rendering
-from .contract import ContractMixin, begin, horizon, make_runtime, real_array, start
+from .contract import ContractMixin, begin, horizon, make_runtime, real_array, redraw, start
 from .runtime import NonFiniteActions
 from .task import Task
 
@@ -70,7 +70,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
         state = None if self._np_random is None else self._np_random.bit_generator.state
         super().reset(seed=None if seed is None else int(seed))
         try:
-            x, g, params = start(self._rt, [self.np_random], options, [0], None)
+            x, g, params = start(self._rt, [self.np_random], options, [0], None, seed is not None)
         except (TypeError, ValueError):  # refused options leave the generator as it was
             self._np_random, self._np_random_seed = before
             if state is not None:
@@ -101,6 +101,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             diverged = rt.step(a.reshape(1, -1), self._horizon)
         except NonFiniteActions:
             raise ValueError(f"Action contains NaN or inf: {action!r}.") from None
+        redraw(rt, [self.np_random])  # parameters declared to change every k steps
         info = self._info(diverged=diverged)
         if self.render_mode == "human":
             self.render()

@@ -14,7 +14,6 @@ action scaling, and the env's own step (`step`; a batched simulator of it is
 from __future__ import annotations
 
 import difflib
-import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache, cached_property
@@ -27,6 +26,7 @@ from dynamics.system import method_tableau
 
 from . import checks
 from .checks import checked_rows, positive_float, positive_int, real_array
+from .randomize import Randomization, add_context, warn_nominal
 from .task import Angle, AngleError, Derived, Task, Value, resolve
 
 # column operations of the observation kernel: (op, source, second source)
@@ -38,9 +38,14 @@ ENV_OPTIONS = {
     "integrator": "'dop853' or 'rk4' (default: the task's)",
     "num_threads": "threads stepping a vector env's copies (default 1; same results)",
     "max_input": "input limits: one number, or one per actuated input, each a bound or (low, high)",
-    "randomize": "model parameters drawn at every reset of each copy, {name: (low, high)} "
-    "(uniform, absolute values); {} steps each copy with its own values, set by "
-    "reset(options={'params': ...}) (default None: every copy has the env's values)",
+    "randomize": "model parameters each copy draws, {name: (low, high)} (uniform, absolute, "
+    "at every reset) or {name: distribution} (envs.randomize: uniform, log-uniform, truncated "
+    "normal, choice; absolute, scale or offset; at reset, construction or every k steps); {} "
+    "steps each copy with its own values, set by reset(options={'params': ...}); default "
+    "None: the task's `randomize` (None there: every copy has the env's values); False: off",
+    "observe_params": "True: the randomised parameters' values appended to the observation "
+    "(context), bounded by their distributions' supports; or a tuple of their names "
+    "(default False)",
 }
 """The env options besides the model's parameters (by name), with what they mean."""
 
@@ -129,9 +134,11 @@ class Plant:
     integrator: str = "dop853"
     num_threads: int = 1
     options: dict = field(default_factory=dict)  # the options it was built with
-    # name -> (low, high) drawn at each reset, or None: every copy steps with `system`'s
-    # values (the task functions' record `p` is always `system`'s: the nominal values)
-    randomize: dict | None = None
+    # the declared randomisation (envs.randomize), or None: every copy steps with
+    # `system`'s values (the task functions' record `p` is always `system`'s: the nominal)
+    randomize: Randomization | None = None
+    context: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    # int64 (k, 2): observation column, parameter column of each context feature
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:
@@ -156,9 +163,12 @@ class Plant:
         method_tableau(plant.integrator)  # ValueError naming the known integrators
         threads = get("num_threads")
         plant.num_threads = 1 if threads is None else positive_int("num_threads", threads)
-        if get("randomize") is not None:
-            plant.randomize = checked_ranges(plant.system, get("randomize"))
-            _warn_nominal(plant, options, opts.get("max_input"))
+        declared = task.randomize if get("randomize") is None else get("randomize")
+        if declared is not False and declared is not None:
+            plant.randomize = Randomization.declare(plant.system, declared)
+            max_input = opts.get("max_input")
+            warn_nominal(plant, lambda k, v: build_plant(task, {**options, k: v}, max_input))
+        add_context(plant, get("observe_params"))
         return plant
 
     @property
@@ -415,142 +425,6 @@ class Plant:
         elif system.n_c:
             x = system.project(x)
         return x, g
-
-    def draw_params(self, rngs, options: dict | None, rows: list[int], batch: int | None):
-        """(parameters, given): the parameters (len(rows), n_p) `rows` start with,
-        columns in the order of `system.parameters`, and which of them options['params']
-        gave (bool, the same shape; None without that option), or (None, None) when the
-        plant declares no randomisation. For each row every declared parameter is drawn
-        uniformly from its range with the row's generator (absolute values: a reset never
-        compounds), then options['params'] (name -> a number for every row, or one per
-        copy) where given (checked); the env's own values for the rest."""
-        system = self.system
-        given = (options or {}).get("params") if isinstance(options, dict) else None
-        if self.randomize is None:
-            if given is not None:
-                raise ValueError(
-                    "reset option 'params' needs an env made with randomize= (e.g. "
-                    "randomize={} for exact values only, or {'m2': (0.8, 1.2)})."
-                )
-            return None, None
-        names = list(system.parameters)
-        values = {}
-        if given is not None:
-            if not isinstance(given, Mapping):
-                raise TypeError(
-                    f"options['params'] must be a dict {{name: value}}, got {type(given).__name__}."
-                )
-            for key, v in given.items():
-                _parameter_name(system, key, "options['params']")
-                v = np.asarray(real_array(v, f"options['params'][{key!r}]"), dtype=np.float64)
-                if v.ndim == 0:
-                    v = np.full(len(rows), float(v))
-                elif batch is None or v.shape != (batch,):
-                    raise ValueError(
-                        f"options['params'][{key!r}] must be a number"
-                        + (f" or an array of shape ({batch},)" if batch else "")
-                        + f", got shape {v.shape}."
-                    )
-                else:
-                    v = v[rows]
-                values[key] = v
-            if values:
-                system.check_parameter_rows(values)
-        out = np.tile(system.kernels()[1], (len(rows), 1))
-        for k, i in enumerate(rows):
-            for name, (lo, hi) in self.randomize.items():
-                out[k, names.index(name)] = rngs[i].uniform(lo, hi)
-        pins = None if given is None else np.zeros(out.shape, dtype=bool)
-        for name, v in values.items():
-            out[:, names.index(name)] = v
-            pins[:, names.index(name)] = True
-        return out, pins
-
-
-def _parameter_name(system, key, where: str) -> None:
-    """ValueError (with a "Did you mean") unless `key` is a parameter of `system`."""
-    known = list(system.parameters)
-    if key not in known:
-        close = difflib.get_close_matches(str(key), known, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
-        raise ValueError(
-            f"{where}: {key!r} is not a parameter of {system.name}.{hint} "
-            f"Known: {', '.join(known)}."
-        )
-
-
-def checked_ranges(system, value) -> dict[str, tuple[float, float]]:
-    """The `randomize` option checked: {parameter name: (low, high)}, finite, low <= high,
-    low > 0 for a parameter the model declares positive, and the model's conditions met
-    at the corners of the ranges (so a draw is never physically impossible there)."""
-    if not isinstance(value, Mapping):
-        raise TypeError(
-            f"randomize must be a dict {{parameter: (low, high)}}, got {type(value).__name__}."
-        )
-    module = system.kernels()[0]
-    positive = dict(zip(module.PARAMETERS, module.POSITIVE))
-    ranges = {}
-    for key, pair in value.items():
-        _parameter_name(system, key, "randomize")
-        if (
-            isinstance(pair, (str, bytes))
-            or not isinstance(pair, (tuple, list, np.ndarray))
-            or len(pair) != 2
-        ):
-            raise ValueError(
-                f"randomize[{key!r}] must be a (low, high) pair of numbers, got {pair!r}."
-            )
-        lo, hi = (float(v) for v in real_array(pair, f"randomize[{key!r}]"))
-        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
-            raise ValueError(f"randomize[{key!r}] must be finite with low <= high, got {pair!r}.")
-        if positive[key] and not lo > 0:
-            raise ValueError(
-                f"randomize[{key!r}] = {pair!r} would draw impossible values: {key} of "
-                f"{system.name} must be positive, so low must be > 0."
-            )
-        ranges[key] = (lo, hi)
-    names = list(ranges)
-    every = len(names) <= 10  # every corner; beyond, all lows and all highs
-    for c in range(2 ** len(names)) if every else range(2):
-        corner = {k: ranges[k][(c >> j) & 1 if every else c] for j, k in enumerate(names)}
-        try:
-            system.check_parameter_rows({k: [v] for k, v in corner.items()})
-        except ValueError as exc:
-            raise ValueError(f"randomize {value!r} reaches invalid parameters: {exc}") from None
-    return ranges
-
-
-_RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_low", "obs_high",
-             "term_low", "term_high")  # fmt: skip
-
-
-def _warn_nominal(plant: Plant, params: dict, max_input) -> None:
-    """A warning naming the task's declared numbers (input limits, bounds, constants, the
-    start distribution) that depend on a randomised parameter: they keep their values at
-    the env's parameters in every copy (as the task functions' record `p` does), only the
-    dynamics follow."""
-    for name, ends in plant.randomize.items():
-        changed = set()
-        for end in ends:
-            other = build_plant(plant.task, {**params, name: end}, max_input)
-            changed |= {k for k in _RESOLVED if not np.array_equal(getattr(other, k),
-                                                                    getattr(plant, k))}  # fmt: skip
-            changed |= {
-                f"constant {k!r}"
-                for k in plant.p.dtype.names
-                if k not in plant.system.parameters and other.p[k] != plant.p[k]
-            }
-            drawn = [p.sample_start(np.random.default_rng(0)) for p in (plant, other)]
-            if not all(np.array_equal(a, b) for a, b in zip(*drawn)):
-                changed.add("start")
-        if changed:
-            warnings.warn(
-                f"Task {plant.task.name!r}: {', '.join(sorted(changed))} depend(s) on "
-                f"randomised {name!r}; they keep the env's values in every copy (only the "
-                "dynamics follow each copy's parameters).",
-                RuntimeWarning,
-                stacklevel=5,
-            )
 
 
 def _rates_from_constraints(system, x: np.ndarray, rates: list[int]) -> np.ndarray:

@@ -252,6 +252,7 @@ class Runtime:
         self.per_row = layout.randomize is not None
         self.P = np.tile(s.kernels()[1], (n, 1)) if self.per_row else None
         self.given = np.zeros(self.P.shape, dtype=bool) if self.per_row else None  # by reset
+        self.drawn = np.zeros(n, dtype=bool) if self.per_row else None  # once-only draws made
         self._params: dict = {}  # `params` of a row (None: all), until `set_params`
         self._views()
         self._compile()
@@ -428,6 +429,7 @@ class Runtime:
         state.setdefault("per_row", False)  # pickled before per-row parameters
         state.setdefault("P", None)
         state.setdefault("given", None)
+        state.setdefault("drawn", None if state["P"] is None else np.ones(len(state["P"]), bool))
         state.setdefault("_params", {})
         self.__dict__.update(state)
         self._views()
@@ -445,6 +447,11 @@ class Runtime:
             )
         self.P[rows] = values
         self._params = {}
+        context = getattr(self.plant, "context", ())  # observed parameters (add_context)
+        for col, j in np.asarray(context).tolist():
+            lo, hi = self.plant.obs_low[col], self.plant.obs_high[col]
+            self._obs64[rows, col] = np.clip(self.P[rows, j], lo, hi)
+            self.O[rows, col] = self._obs64[rows, col]
 
     def params(self, row: int | None = None) -> dict:
         """The parameter values in force: name -> float of one row, or (N,) read-only
@@ -478,7 +485,7 @@ class Runtime:
         self.R[rows] = 0.0
         lay = self.plant
         x, g, a = self.rows()[rows], self.G[rows], self.A[rows]
-        obs = np.zeros((len(x), lay.obs_size))
+        obs = self._obs64[rows]  # a copy: every column is rewritten but the context's
         observe(x, g, lay.ops, lay.obs_low, lay.obs_high, obs)
         for col, fn in self._derived:
             obs[:, col] = fn(x, a, g, lay.p)

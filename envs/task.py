@@ -38,7 +38,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .checks import check_task
+from .checks import DeclarationError, check_task
+from .randomize import distribution
 
 Number = float | str | Callable[[Any], float]
 """A number, the name of a parameter or constant of p, or a function of p giving one."""
@@ -175,6 +176,9 @@ class Task:
         (rates 0, other coordinates 0), or a function (g, x, system) -> x0 rows.
     lqr, heuristic, algo, hyperparams: what agents use (hyperparams by algorithm name,
         in the format of agents/hyperparams/<algo>.yml).
+    randomize: the model parameters each copy draws by default (the forms of the env
+        option `randomize=`, see `envs.randomize`), or None; the env option replaces it,
+        `randomize=False` turns it off.
     draw: draw(surface, x, g, p, history) renders one frame from one row x (the state and
         the declared outputs) and goal g; history: the rows of the frames rendered so far
         this episode, or None (default: a dial per angle, a slider per other coordinate).
@@ -209,9 +213,21 @@ class Task:
     algo: str = "ppo"
     hyperparams: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     draw: Callable | None = None
+    randomize: Mapping[str, Any] | None = None
 
     def __post_init__(self):
         check_task(self, (Angle, AngleError, Value, Derived), Goal, Term, LQRHints, Heuristic)
+        if self.randomize is not None:  # the forms checked here, the names on the model
+            if not isinstance(self.randomize, Mapping):
+                raise DeclarationError(
+                    f"Task {self.name!r}: `randomize` must be a dict {{parameter: (low, high) "
+                    f"or a distribution}}, got {type(self.randomize).__name__}."
+                )
+            for key, form in self.randomize.items():
+                try:
+                    distribution(form, key)
+                except ValueError as exc:
+                    raise DeclarationError(f"Task {self.name!r}: {exc}") from None
         if self.reward is not None:
             warnings.warn(
                 f"Task {self.name!r}: `reward(x, a, g, p)` reading columns by number is the "

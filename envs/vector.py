@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import rendering
-from .contract import ContractMixin, begin, make_runtime, positive_int, real_array, start
+from .contract import ContractMixin, begin, make_runtime, positive_int, real_array, redraw, start
 from .env import LagrangianEnv, draw
 from .task import Task
 
@@ -97,7 +97,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         states = [r.bit_generator.state for r in rngs]
         rows = list(range(self.num_envs))
         try:
-            x, g, params = start(self._rt, rngs, options, rows, self.num_envs)
+            x, g, params = start(self._rt, rngs, options, rows, self.num_envs, seed is not None)
         except (TypeError, ValueError):  # refused options leave the generators as they were
             for r, state in zip(rngs, states):
                 r.bit_generator.state = state
@@ -120,6 +120,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         rt = self._rt
         resetting = self._done.copy()  # NEXT_STEP: last step's finished copies start afresh
         rt.step(a, self.max_episode_steps)
+        redraw(rt, self._rngs, ~resetting)  # every-k-steps parameters (not of those resetting)
         terminated = rt.terminated.copy()
         truncated = (rt.steps >= self.max_episode_steps) & ~terminated
         if resetting.any():
