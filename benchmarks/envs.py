@@ -249,17 +249,22 @@ def vector_table(sizes, seconds: float, rounds: int = 3) -> None:
 
 def per_copy_table(sizes, seconds: float, rounds: int = 5) -> None:
     """The cost of per-copy model parameters (`randomize=`) against parameters shared by
-    every copy: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
-    `gymnasium.make` and the native vector env at each N, in alternating rounds (the ratio
-    taken within each round, medians)."""
+    every copy, and of redrawing them mid-episode (every 10 steps of each copy, `when=10`)
+    against drawing them at resets only: env-steps/s of TwoLinkArm-v1 (one thread), the
+    single env through `gymnasium.make` and the native vector env at each N, in
+    alternating rounds (the ratios taken within each round, medians)."""
     arm_id = "Lagrange/TwoLinkArm-v1"
     inertial = {"Ibar1": (0.75 / 12, 1.25 / 12), "Ibar2": (0.75 / 12, 1.25 / 12)}
+    every = {k: {"dist": "uniform", "low": lo, "high": hi, "when": 10}
+             for k, (lo, hi) in inertial.items()}  # fmt: skip
+    kinds = (("shared", {}), ("per-copy", {"randomize": inertial}),
+             ("every 10", {"randomize": every}))  # fmt: skip
     rng = np.random.default_rng(0)
     print("\n| TwoLinkArm-v1, one thread | shared parameters (env-steps/s) "
-          "| per-copy parameters | per-copy / shared (same rounds) |")  # fmt: skip
-    print("|---|---|---|---|")
-    single = {k: gym.make(arm_id, **opts) for k, opts in
-              (("shared", {}), ("per-copy", {"randomize": inertial}))}  # fmt: skip
+          "| per-copy parameters | per-copy / shared (same rounds) "
+          "| redrawn every 10 steps | every 10 / per-copy |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    single = {k: gym.make(arm_id, **opts) for k, opts in kinds}
     actions = rng.uniform(-1, 1, (1000, 2)).astype(np.float32)
     runs = {k: [] for k in single}
     for _ in range(rounds):
@@ -270,7 +275,7 @@ def per_copy_table(sizes, seconds: float, rounds: int = 5) -> None:
         steppers = {
             k: vector_stepper(gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point",
                                            num_threads=1, **opts))
-            for k, opts in (("shared", {}), ("per-copy", {"randomize": inertial}))
+            for k, opts in kinds
         }  # fmt: skip
         runs = {k: [] for k in steppers}
         for _ in range(rounds):
@@ -281,8 +286,10 @@ def per_copy_table(sizes, seconds: float, rounds: int = 5) -> None:
 
 def _per_copy_row(label: str, runs: dict) -> None:
     shared, per_copy = np.array(runs["shared"]), np.array(runs["per-copy"])
+    every = np.array(runs["every 10"])
     print(f"| {label} | {np.median(shared):,.0f} | {np.median(per_copy):,.0f} "
-          f"| {np.median(per_copy / shared):.3f} |")  # fmt: skip
+          f"| {np.median(per_copy / shared):.3f} | {np.median(every):,.0f} "
+          f"| {np.median(every / per_copy):.3f} |")  # fmt: skip
 
 
 def vector_stepper(vec):
