@@ -201,3 +201,31 @@ def test_choice_draws_only_its_values_with_their_weights():
 def test_bad_distributions_are_refused_naming_the_problem(declared, message):
     with pytest.raises((ValueError, TypeError), match=re.escape(message)):
         gym.make(ARM, randomize=declared)
+
+
+def test_values_given_by_reset_options_hold_through_every_k_step_redraws():
+    vec = _vec(
+        2, randomize={"Ibar1": Uniform(0.05, 0.1, when=2), "Ibar2": Uniform(0.06, 0.07, when=2)}
+    )
+    vec.reset(seed=0, options={"params": {"Ibar1": [0.055, 0.065]}})
+    for _ in range(4):
+        info = vec.step(_zeros(vec))[4]
+    assert info["params"]["Ibar1"].tolist() == [0.055, 0.065]
+    assert not np.array_equal(info["params"]["Ibar2"], vec.reset(seed=0)[1]["params"]["Ibar2"])
+
+
+def test_a_pickled_env_draws_on_as_the_original():
+    import pickle
+
+    declared = {
+        "Ibar1": Uniform(0.05, 0.1, when=3),
+        "Ibar2": Uniform(0.06, 0.07, when="construction"),
+    }
+    vec = _vec(3, randomize=declared, observe_params=True, max_episode_steps=5)
+    vec.reset(seed=1)
+    vec.step(_zeros(vec))
+    twin = pickle.loads(pickle.dumps(vec))
+    for _ in range(8):
+        a, b = vec.step(_zeros(vec)), twin.step(_zeros(twin))
+        assert np.array_equal(a[0], b[0])
+        assert all(np.array_equal(a[4]["params"][k], b[4]["params"][k]) for k in declared)
