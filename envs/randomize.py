@@ -5,7 +5,7 @@ the draw applies and when.
 distribution, in any of these forms::
 
     {"m2": (0.8, 1.2)}                                   # uniform, absolute, every reset
-    {"m2": Uniform(0.8, 1.2, apply="scale")}             # the dataclasses below
+    {"m2": Uniform(0.8, 1.2, apply="scale")}             # envs.distributions
     {"m2": {"dist": "loguniform", "low": 0.5, "high": 2, "apply": "scale", "when": 100}}
 
 Distributions: `Uniform(low, high)`, `LogUniform(low, high)` (its log uniform, low > 0),
@@ -24,242 +24,26 @@ parameter the model declares positive, and meet the model's conditions at every 
 the box of supports (all lows and all highs beyond 10 parameters). Each copy draws from its
 own generator (the env's; copy i of a vector env: seed + i), parameters in the order
 declared, so a copy reproduces a single env seeded like it.
+
+Only the dynamics follow each copy's values. The task's declared numbers (input limits,
+bounds, goal ranges, the start distribution), its `constants` and the record `p` its
+functions read stay at the env's own values in every copy: they are constants of the
+compiled step, one for all copies. `warn_nominal` names those a declaration touches.
+`observe_params` appends the drawn values to the observation (`add_context`).
 """
 
 from __future__ import annotations
 
 import difflib
-import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.special import ndtr, ndtri
 
 from .checks import real_array
-
-APPLY = ("absolute", "scale", "offset")
-WHEN = ("reset", "construction")
-
-
-def _when(when) -> str | int:
-    whole = isinstance(when, (int, np.integer)) and not isinstance(when, bool)
-    if when in WHEN or (whole and when >= 1):
-        return int(when) if whole else when
-    raise ValueError(
-        f"when must be 'reset', 'construction' or a whole number of steps >= 1, got {when!r}."
-    )
-
-
-def _number(value, what: str) -> float:
-    v = float(real_array(value, what))
-    if not math.isfinite(v):
-        raise ValueError(f"{what} must be finite, got {value!r}.")
-    return v
-
-
-class _Distribution:
-    """What the distributions share: `apply`, `when`, their checks and `support`."""
-
-    def _check(self) -> None:
-        if self.apply not in APPLY:
-            raise ValueError(f"apply must be one of {APPLY}, got {self.apply!r}.")
-        object.__setattr__(self, "when", _when(self.when))
-
-    def value(self, draw: float, nominal: float) -> float:
-        """The parameter's value for a draw, from the nominal value (never compounding)."""
-        if self.apply == "scale":
-            return nominal * draw
-        if self.apply == "offset":
-            return nominal + draw
-        return draw
-
-    def support(self, nominal: float) -> tuple[float, float]:
-        """The lowest and highest value a draw gives (after `apply`)."""
-        ends = [self.value(v, nominal) for v in self.ends()]
-        return min(ends), max(ends)
-
-
-def _ordered(self, low: str = "low", high: str = "high") -> None:
-    lo = _number(getattr(self, low), f"{type(self).__name__}.{low}")
-    hi = _number(getattr(self, high), f"{type(self).__name__}.{high}")
-    if not lo <= hi:
-        raise ValueError(f"{type(self).__name__} needs low <= high, got ({lo!r}, {hi!r}).")
-    object.__setattr__(self, low, lo)
-    object.__setattr__(self, high, hi)
-
-
-@dataclass(frozen=True)
-class Uniform(_Distribution):
-    """Uniform in [low, high]."""
-
-    low: float
-    high: float
-    apply: str = "absolute"
-    when: str | int = "reset"
-
-    def __post_init__(self):
-        _ordered(self)
-        self._check()
-
-    def sample(self, rng) -> float:
-        return rng.uniform(self.low, self.high)
-
-    def ends(self) -> tuple[float, float]:
-        return self.low, self.high
-
-
-@dataclass(frozen=True)
-class LogUniform(_Distribution):
-    """Its logarithm uniform in [log low, log high] (0 < low <= high): every factor of the
-    range as likely as any other, the usual prior for a scale."""
-
-    low: float
-    high: float
-    apply: str = "absolute"
-    when: str | int = "reset"
-
-    def __post_init__(self):
-        _ordered(self)
-        if not self.low > 0:
-            raise ValueError(f"LogUniform needs 0 < low, got low = {self.low!r}.")
-        self._check()
-
-    def sample(self, rng) -> float:
-        return math.exp(rng.uniform(math.log(self.low), math.log(self.high)))
-
-    def ends(self) -> tuple[float, float]:
-        return self.low, self.high
-
-
-@dataclass(frozen=True)
-class TruncNormal(_Distribution):
-    """Normal(mean, std) restricted to [low, high] (bounds required: a draw never leaves
-    them), sampled by inverting the normal CDF over the bounds' probability interval."""
-
-    mean: float
-    std: float
-    low: float
-    high: float
-    apply: str = "absolute"
-    when: str | int = "reset"
-
-    def __post_init__(self):
-        _ordered(self)
-        object.__setattr__(self, "mean", _number(self.mean, "TruncNormal.mean"))
-        object.__setattr__(self, "std", _number(self.std, "TruncNormal.std"))
-        if not self.std > 0:
-            raise ValueError(f"TruncNormal needs std > 0, got {self.std!r}.")
-        a, b = self._standard()
-        if not ndtr(b) > ndtr(a):  # evaluated in the lower tail: see `_standard`
-            raise ValueError(
-                f"TruncNormal({self.mean!r}, {self.std!r}, {self.low!r}, {self.high!r}): "
-                "the bounds hold no probability to draw from (they lie too far in a tail "
-                "or are equal): give bounds nearer the mean."
-            )
-        self._check()
-
-    def _standard(self) -> tuple[float, float]:
-        """The bounds standardised, mirrored into the lower tail when they lie above the
-        mean (where the CDF keeps its relative precision)."""
-        a, b = (self.low - self.mean) / self.std, (self.high - self.mean) / self.std
-        return (-b, -a) if a > 0 else (a, b)
-
-    def sample(self, rng) -> float:
-        a, b = self._standard()
-        z = float(ndtri(rng.uniform(ndtr(a), ndtr(b))))
-        z = -z if (self.low - self.mean) / self.std > 0 else z
-        return min(max(self.mean + self.std * z, self.low), self.high)
-
-    def ends(self) -> tuple[float, float]:
-        return self.low, self.high
-
-
-@dataclass(frozen=True)
-class Choice(_Distribution):
-    """One of `values`, with probabilities `weights` (normalised; None: equally likely)."""
-
-    values: tuple
-    weights: tuple | None = None
-    apply: str = "absolute"
-    when: str | int = "reset"
-
-    def __post_init__(self):
-        values = self.values
-        if isinstance(values, (str, bytes, Mapping)) or not np.ndim(values) == 1 or not len(values):
-            raise ValueError(f"Choice needs a non-empty sequence of numbers, got {values!r}.")
-        object.__setattr__(self, "values", tuple(_number(v, "Choice.values") for v in values))
-        if self.weights is not None:
-            w = np.asarray(real_array(self.weights, "Choice.weights"), dtype=np.float64)
-            if w.shape != (len(self.values),) or not (np.isfinite(w).all() and (w >= 0).all()):
-                raise ValueError(
-                    f"Choice.weights must be {len(self.values)} finite numbers >= 0, "
-                    f"got {self.weights!r}."
-                )
-            if not w.sum() > 0:
-                raise ValueError("Choice.weights must not all be 0.")
-            object.__setattr__(self, "weights", tuple((w / w.sum()).tolist()))
-        self._check()
-
-    def sample(self, rng) -> float:
-        if self.weights is None:
-            return self.values[int(rng.integers(len(self.values)))]
-        return self.values[int(rng.choice(len(self.values), p=self.weights))]
-
-    def ends(self) -> tuple[float, float]:
-        return min(self.values), max(self.values)
-
-
-DISTRIBUTIONS = {
-    "uniform": Uniform,
-    "loguniform": LogUniform,
-    "truncnormal": TruncNormal,
-    "choice": Choice,
-}
-"""The plain-dict form's `dist` names."""
-Distribution = Uniform | LogUniform | TruncNormal | Choice
-
-
-def distribution(value, name: str = "") -> Distribution:
-    """A distribution from any declared form: a (low, high) pair (uniform, absolute, every
-    reset: the simple form), one of the dataclasses, or a dict with `dist` and its fields."""
-    where = f"randomize[{name!r}]" if name else "randomize"
-    if isinstance(value, Distribution):
-        return value
-    if isinstance(value, Mapping):
-        kind = value.get("dist", "uniform")
-        cls = DISTRIBUTIONS.get(kind) if isinstance(kind, str) else None
-        if cls is None:
-            close = difflib.get_close_matches(str(kind), list(DISTRIBUTIONS), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            raise ValueError(
-                f"{where}: unknown dist {kind!r}.{hint} Known: {', '.join(DISTRIBUTIONS)}."
-            )
-        known = [f.name for f in fields(cls)]
-        unknown = sorted(set(value) - set(known) - {"dist"})
-        if unknown:
-            raise ValueError(f"{where}: {kind} takes {', '.join(known)}; got also {unknown}.")
-        try:
-            return cls(**{k: v for k, v in value.items() if k != "dist"})
-        except TypeError as exc:  # a missing field
-            raise ValueError(f"{where}: {exc}; {kind} takes {', '.join(known)}.") from None
-        except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
-    if (
-        isinstance(value, (str, bytes))
-        or not isinstance(value, (tuple, list, np.ndarray))
-        or len(value) != 2
-    ):
-        raise ValueError(
-            f"{where} must be a (low, high) pair of numbers, a distribution (Uniform, "
-            f"LogUniform, TruncNormal, Choice) or a dict with 'dist', got {value!r}."
-        )
-    lo, hi = (float(v) for v in real_array(value, where))
-    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
-        raise ValueError(f"{where} must be finite with low <= high, got {value!r}.")
-    return Uniform(lo, hi)
+from .distributions import Choice, LogUniform, TruncNormal, Uniform, distribution
 
 
 def parameter_name(system, key, where: str) -> None:
@@ -488,6 +272,7 @@ def warn_nominal(plant, rebuild) -> None:
             drawn = [p.sample_start(np.random.default_rng(0)) for p in (plant, other)]
             if not all(np.array_equal(a, b) for a, b in zip(*drawn)):
                 changed.add("start")
+            changed |= _functions_reading(plant, other)
         if changed:
             warnings.warn(
                 f"Task {plant.task.name!r}: {', '.join(sorted(changed))} depend(s) on "
@@ -496,6 +281,35 @@ def warn_nominal(plant, rebuild) -> None:
                 RuntimeWarning,
                 stacklevel=5,
             )
+
+
+def _functions_reading(plant, other) -> set[str]:
+    """The task functions whose values differ between the records `p` of `plant` and
+    `other` (at sample rows with their state perturbed, so that rates are not all 0, and
+    random actions): those that read a parameter `other` changes."""
+    from .names import caller, record_type  # the runtime's form of the calls
+
+    task = plant.task
+    x, g = plant.sample_rows(8)
+    rng = np.random.default_rng(0)
+    n_x = plant.system.state_size
+    x[:, :n_x] += rng.normal(0.0, 0.5, (len(x), n_x))
+    a = rng.uniform(-1.0, 1.0, (len(x), len(plant.actuated)))
+    fns = [(t.name, t.fn) for t in task.terms] if task.named else [("reward", task.reward)]
+    fns += [("success", task.success), ("failure", task.failure)]
+    fns += [(f.name, f.fn) for f in task.observation if hasattr(f, "fn")]
+    types = (record_type("Rows", plant.row_names), record_type("Actions", task.actuated),
+             record_type("Goal", plant.goal_names))  # fmt: skip
+    out = set()
+    for label, fn in fns:
+        if fn is None:
+            continue
+        call = caller(fn, *types) if task.named else fn
+        with np.errstate(all="ignore"):
+            ends = [np.asarray(call(x, a, g, p), dtype=np.float64) for p in (plant.p, other.p)]
+        if not np.array_equal(*ends, equal_nan=True):
+            out.add(f"task function {label!r}")
+    return out
 
 
 __all__ = [

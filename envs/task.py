@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .checks import DeclarationError, check_task
-from .randomize import distribution
+from .distributions import distribution
 
 Number = float | str | Callable[[Any], float]
 """A number, the name of a parameter or constant of p, or a function of p giving one."""
