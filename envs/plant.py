@@ -135,10 +135,11 @@ class Plant:
     num_threads: int = 1
     options: dict = field(default_factory=dict)  # the options it was built with
     # the declared randomisation (envs.randomize), or None: every copy steps with
-    # `system`'s values (the task functions' record `p` is always `system`'s: the nominal)
+    # `system`'s values (the task functions' record `p` is `system`'s unless `p_follows`)
     randomize: Randomization | None = None
     context: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     # int64 (k, 2): observation column, parameter column of each context feature
+    p_follows: bool = False  # the task functions' `p` follows each copy's values
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:
@@ -167,7 +168,8 @@ class Plant:
         if declared is not False and declared is not None:
             plant.randomize = Randomization.declare(plant.system, declared)
             max_input = opts.get("max_input")
-            warn_nominal(plant, lambda k, v: build_plant(task, {**options, k: v}, max_input))
+            rebuild = lambda k, v: build_plant(task, {**options, k: v}, max_input)  # noqa: E731
+            plant.p_follows = warn_nominal(plant, rebuild)
         add_context(plant, get("observe_params"))
         return plant
 

@@ -25,10 +25,13 @@ the box of supports (all lows and all highs beyond 10 parameters). Each copy dra
 own generator (the env's; copy i of a vector env: seed + i), parameters in the order
 declared, so a copy reproduces a single env seeded like it.
 
-Only the dynamics follow each copy's values. The task's declared numbers (input limits,
-bounds, goal ranges, the start distribution), its `constants` and the record `p` its
-functions read stay at the env's own values in every copy: they are constants of the
-compiled step, one for all copies. `warn_nominal` names those a declaration touches.
+The dynamics follow each copy's values, and so does the record `p` the task functions
+read (with the task's `constants` computed at the copy's values) where every function
+reading it does so element by element (`warn_nominal` checks; the runtime then passes one
+record per row). The task's declared numbers (input limits, bounds, goal ranges, the
+start distribution) stay at the env's own values in every copy: they are constants of the
+compiled step and the spaces, one for all copies; `warn_nominal` names those a
+declaration touches.
 `observe_params` appends the drawn values to the observation (`add_context`).
 """
 
@@ -252,41 +255,59 @@ _RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_
              "term_low", "term_high")  # fmt: skip
 
 
-def warn_nominal(plant, rebuild) -> None:
-    """A warning naming the task's declared numbers (input limits, bounds, constants, the
-    start distribution) that depend on a randomised parameter: they keep their values at
-    the env's parameters in every copy (as the task functions' record `p` does), only the
-    dynamics follow. `rebuild(name, value)`: the plant with one parameter changed."""
+def warn_nominal(plant, rebuild) -> bool:
+    """Whether the task functions' record `p` follows each copy's values (parameters and
+    the `constants` computed from them): True when some task function reads `p` and every
+    such function reads it element by element (checked on sample rows: given a record per
+    row, each row gets what its own record gives). A warning names what stays at the
+    env's values in every copy: the declared numbers (input limits, bounds, the start
+    distribution) that depend on a randomised parameter, and the functions and constants
+    too when they cannot follow. `rebuild(name, value)`: the plant with one parameter
+    changed."""
     spec = plant.randomize
+    nudged = record_rows(plant.p, 1)[0]
+    for k in plant.p.dtype.names:  # every parameter and constant moved a little
+        nudged[k] = plant.p[k] * 1.001 + 1e-3
+    labels, follows = _functions_reading(plant, nudged)
+    follows &= bool(labels)
+    changed = {}
     for name in spec.dists:
-        changed = set()
+        changed[name] = set()
         for end in spec.support(name):
             other = rebuild(name, end)
-            changed |= {k for k in _RESOLVED if not np.array_equal(getattr(other, k),
-                                                                    getattr(plant, k))}  # fmt: skip
-            changed |= {
+            changed[name] |= {
+                k for k in _RESOLVED if not np.array_equal(getattr(other, k), getattr(plant, k))
+            }
+            constants = {
                 f"constant {k!r}"
                 for k in plant.p.dtype.names
                 if k not in plant.system.parameters and other.p[k] != plant.p[k]
             }
             drawn = [p.sample_start(np.random.default_rng(0)) for p in (plant, other)]
             if not all(np.array_equal(a, b) for a, b in zip(*drawn)):
-                changed.add("start")
-            changed |= _functions_reading(plant, other)
-        if changed:
+                changed[name].add("start")
+            changed[name] |= constants | _functions_reading(plant, other.p)[0]
+    for name, items in changed.items():
+        if follows:
+            items = {k for k in items if not k.startswith(("constant", "task function"))}
+        if items:
             warnings.warn(
-                f"Task {plant.task.name!r}: {', '.join(sorted(changed))} depend(s) on "
+                f"Task {plant.task.name!r}: {', '.join(sorted(items))} depend(s) on "
                 f"randomised {name!r}; they keep the env's values in every copy (only the "
-                "dynamics follow each copy's parameters).",
+                "dynamics"
+                + (" and the task functions' record p" if follows else "")
+                + " follow each copy's parameters).",
                 RuntimeWarning,
                 stacklevel=5,
             )
+    return follows
 
 
-def _functions_reading(plant, other) -> set[str]:
-    """The task functions whose values differ between the records `p` of `plant` and
-    `other` (at sample rows with their state perturbed, so that rates are not all 0, and
-    random actions): those that read a parameter `other` changes."""
+def _functions_reading(plant, other) -> tuple[set[str], bool]:
+    """(labels, rowwise): the task functions whose values differ between `plant.p` and
+    the record `other` (at sample rows with their state perturbed, so that rates are not
+    all 0, and random actions), and whether each of them, given one record per row
+    (alternately `plant.p` and `other`), returns row by row what that row's record gives."""
     from .names import caller, record_type  # the runtime's form of the calls
 
     task = plant.task
@@ -300,15 +321,48 @@ def _functions_reading(plant, other) -> set[str]:
     fns += [(f.name, f.fn) for f in task.observation if hasattr(f, "fn")]
     types = (record_type("Rows", plant.row_names), record_type("Actions", task.actuated),
              record_type("Goal", plant.goal_names))  # fmt: skip
-    out = set()
+    mixed = record_rows(plant.p, len(x))
+    odd = np.arange(len(x)) % 2 == 1
+    mixed[odd] = other
+    out, rowwise = set(), True
     for label, fn in fns:
         if fn is None:
             continue
         call = caller(fn, *types) if task.named else fn
         with np.errstate(all="ignore"):
-            ends = [np.asarray(call(x, a, g, p), dtype=np.float64) for p in (plant.p, other.p)]
-        if not np.array_equal(*ends, equal_nan=True):
+            ends = [np.asarray(call(x, a, g, p), dtype=np.float64) for p in (plant.p, other)]
+            if np.array_equal(*ends, equal_nan=True):
+                continue
             out.add(f"task function {label!r}")
+            try:
+                rows = np.asarray(call(x, a, g, mixed), dtype=np.float64)
+            except Exception:  # a task function's own error: it does not read p by row
+                rowwise = False
+                continue
+        expected = np.where(odd.reshape((-1,) + (1,) * (ends[0].ndim - 1)), *ends[::-1])
+        rowwise &= rows.shape == expected.shape and np.array_equal(rows, expected, equal_nan=True)
+    return out, rowwise
+
+
+def record_rows(p, n: int) -> np.recarray:
+    """n copies of the record `p`, one per row (read by name: `p.m1` is then (n,))."""
+    rows = np.zeros(n, dtype=p.dtype).view(np.recarray)
+    rows[:] = p
+    return rows
+
+
+def task_records(plant, values: np.ndarray) -> np.recarray:
+    """The task functions' records of parameter rows `values` (k, n_p): the parameters,
+    and the task's `constants` computed at each row's values."""
+    names = list(plant.system.parameters)
+    out = record_rows(plant.p, len(values))
+    for j, k in enumerate(names):
+        out[k] = values[:, j]
+    if plant.task.constants is not None:
+        for r, row in enumerate(values.tolist()):
+            system = plant.system.with_parameters(**dict(zip(names, row)))
+            for k, v in plant.task.constants(system).items():
+                out[k][r] = v
     return out
 
 

@@ -31,6 +31,7 @@ from dynamics.system import BLOCK, method_tableau
 
 from . import checks, fused, names
 from .plant import Plant
+from .randomize import record_rows, task_records
 from .task import Derived
 
 _COMPILED: dict = {}
@@ -253,6 +254,9 @@ class Runtime:
         self.P = np.tile(s.kernels()[1], (n, 1)) if self.per_row else None
         self.given = np.zeros(self.P.shape, dtype=bool) if self.per_row else None  # by reset
         self.drawn = np.zeros(n, dtype=bool) if self.per_row else None  # once-only draws made
+        # each row's record `p` for the task functions, when it follows the row's values
+        follows = self.per_row and getattr(layout, "p_follows", False)
+        self.p_rows = record_rows(layout.p, n) if follows else None
         self._params: dict = {}  # `params` of a row (None: all), until `set_params`
         self._views()
         self._compile()
@@ -369,11 +373,13 @@ class Runtime:
         }
         checks.trial_run(lay, positional)
 
-        sample = (self._rows_x, self.A, self.G, lay.p)
+        # the record the task functions read: the plant's, or one per row (p_rows)
+        self._p_task = lay.p if self.p_rows is None else self.p_rows
+        sample = (self._rows_x, self.A, self.G, self._p_task)
         if named:
             sample_named = (
                 *(names.columns(cls, a) for cls, a in zip(self._types, sample[:3])),
-                lay.p,
+                self._p_task,
             )
             jitted = {
                 f"_{r}": compile_task_function(fn, sample_named) for r, (_, fn) in functions.items()
@@ -419,7 +425,7 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_p_kernel"):  # fmt: skip
+                  "_E0", "_p_kernel", "_p_task"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -429,6 +435,7 @@ class Runtime:
         state.setdefault("per_row", False)  # pickled before per-row parameters
         state.setdefault("P", None)
         state.setdefault("given", None)
+        state.setdefault("p_rows", None)
         state.setdefault("drawn", None if state["P"] is None else np.ones(len(state["P"]), bool))
         state.setdefault("_params", {})
         self.__dict__.update(state)
@@ -447,6 +454,8 @@ class Runtime:
             )
         self.P[rows] = values
         self._params = {}
+        if self.p_rows is not None:  # the task functions' records, constants recomputed
+            self.p_rows[rows] = task_records(self.plant, self.P[rows])
         context = getattr(self.plant, "context", ())  # observed parameters (add_context)
         for col, j in np.asarray(context).tolist():
             lo, hi = self.plant.obs_low[col], self.plant.obs_high[col]
@@ -488,7 +497,7 @@ class Runtime:
         obs = self._obs64[rows]  # a copy: every column is rewritten but the context's
         observe(x, g, lay.ops, lay.obs_low, lay.obs_high, obs)
         for col, fn in self._derived:
-            obs[:, col] = fn(x, a, g, lay.p)
+            obs[:, col] = fn(x, a, g, lay.p if self.p_rows is None else self.p_rows[rows])
         np.clip(obs, lay.obs_low, lay.obs_high, out=obs)
         self._obs64[rows] = obs
         self.O[rows] = obs
@@ -504,7 +513,7 @@ class Runtime:
             if step is None:
                 step = self._bind_fused(actions)
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
-                        self._fused_K, self._p_kernel, lay.p,
+                        self._fused_K, self._p_kernel, self._p_task,
                         -1 if horizon is None else horizon)  # fmt: skip
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
@@ -532,7 +541,7 @@ class Runtime:
         numba's cache on first use), bound as `bind` does."""
         f = actions.flags
         args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
-                self._p_kernel, self.plant.p, -1)  # fmt: skip
+                self._p_kernel, self._p_task, -1)  # fmt: skip
         self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
         step = bind(self._fused, args)
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
@@ -544,13 +553,13 @@ class Runtime:
         self._observe(x, self.G, lay.ops, lay.obs_low, lay.obs_high, self._obs64)
         if self._derived:  # the declared features are clipped by `observe` already
             for col, fn in self._derived:
-                self._obs64[:, col] = fn(x, self.A, self.G, lay.p)
+                self._obs64[:, col] = fn(x, self.A, self.G, self._p_task)
             np.clip(self._obs64, lay.obs_low, lay.obs_high, out=self._obs64)
-        for k, v in enumerate(self._reward(x, self.A, self.G, lay.p)):
+        for k, v in enumerate(self._reward(x, self.A, self.G, self._p_task)):
             self.Q[:, k] = v
-        self.success[:] = self._success(x, self.A, self.G, lay.p)
+        self.success[:] = self._success(x, self.A, self.G, self._p_task)
         if self._failure is not None:
-            self._failed[:] = self._failure(x, self.A, self.G, lay.p)
+            self._failed[:] = self._failure(x, self.A, self.G, self._p_task)
         return self._finish(self.Q, lay.term_low, lay.term_high, self._failed,
                             self.diverged, steps_left, self._lowest, self.R,
                             self.terminated, self.success, self._obs64, lay.obs_low,

@@ -229,9 +229,3 @@ def test_a_pickled_env_draws_on_as_the_original():
         a, b = vec.step(_zeros(vec)), twin.step(_zeros(twin))
         assert np.array_equal(a[0], b[0])
         assert all(np.array_equal(a[4]["params"][k], b[4]["params"][k]) for k in declared)
-
-
-def test_a_task_function_reading_a_randomised_parameter_is_named():
-    """Acrobot-v2's height term reads p.l and p.l2, which stay nominal in every copy."""
-    with pytest.warns(RuntimeWarning, match="task function 'height' depend.* randomised 'l'"):
-        gym.make("Lagrange/Acrobot-v2", randomize={"l": Uniform(0.9, 1.1, apply="scale")})

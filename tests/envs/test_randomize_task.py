@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -120,3 +121,65 @@ def test_observed_parameters_appear_in_the_observation_table():
 def test_bad_observe_params_are_refused(options, message):
     with pytest.raises((ValueError, TypeError), match=re.escape(message)):
         gym.make(ARM, **options)
+
+
+ACROBOT, CRANK = "Lagrange/Acrobot-v2", "Lagrange/CrankSlider-v1"
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_task_functions_read_each_copy_s_own_parameters(fused):
+    """Acrobot-v2's height term reads p.l and p.l2: a copy with its own l pays, bit for
+    bit, what a single env made with that l pays."""
+    n, row = 9, 4
+    vec = gym.make_vec(ACROBOT, n, vectorization_mode="vector_entry_point", randomize={})
+    assert vec.unwrapped.plant.p_follows
+    if not fused:
+        vec.unwrapped._rt._fused = None
+    values = np.full(n, 1.0)
+    values[row] = 1.1
+    vec.reset(seed=10, options={"params": {"l": values}})
+    single = gym.make(ACROBOT, l=1.1)
+    single.reset(seed=10 + row)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        a = rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32)
+        obs, r, _, _, info = vec.step(a)
+        o1, r1, _, _, i1 = single.step(a[row])
+        assert np.array_equal(obs[row], o1) and r[row] == r1
+        assert info["reward_terms"]["height"][row] == i1["reward_terms"]["height"]
+    # nothing left to warn about for l: the dynamics and the height term both follow
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        gym.make(ACROBOT, randomize={"l": (0.9, 1.1)})
+
+
+def test_constants_are_computed_at_each_copy_s_values():
+    """CrankSlider's constants (half travel, reach, ...) follow R; its goal range and
+    observation bounds stay nominal (the warning says so), so the start is given."""
+    with pytest.warns(RuntimeWarning, match=r"goal_high.*randomised 'R'.*record p follow"):
+        vec = gym.make_vec(CRANK, 3, vectorization_mode="vector_entry_point",
+                           randomize={"R": (0.09, 0.11)})  # fmt: skip
+    single = gym.make(CRANK, R=0.105)
+    _, i1 = single.reset(seed=0)
+    start = {"state": np.tile(i1["state"], (3, 1)), "goal": np.tile(i1["goal"], (3, 1))}
+    vec.reset(seed=0, options={"params": {"R": [0.1, 0.105, 0.095]}, **start})
+    p_rows = vec.unwrapped._rt.p_rows
+    assert p_rows[1] == single.unwrapped.plant.p  # every constant, recomputed
+    assert p_rows.half_travel[0] == gym.make(CRANK).unwrapped.plant.p.half_travel
+    for _ in range(30):
+        a = np.full(vec.action_space.shape, 0.3, dtype=np.float32)
+        r = vec.step(a)[1]
+        assert r[1] == single.step(a[1])[1]
+
+
+def test_a_task_function_that_cannot_read_p_by_row_keeps_it_nominal_and_is_named():
+    def height(x, a, goal, p):  # a scalar use of p: one record for all rows only
+        return np.full(len(x.theta1), float(p.l) - 1.0)
+
+    base = envs.acrobot.TASK_V2
+    terms = tuple(dataclasses.replace(t, fn=height) if t.name == "height" else t
+                  for t in base.terms)  # fmt: skip
+    task = dataclasses.replace(base, name="AcrobotScalarP", terms=terms)
+    with pytest.warns(RuntimeWarning, match="task function 'height' depend.* randomised 'l'"):
+        env = LagrangianEnv(task, randomize={"l": (0.9, 1.1)})
+    assert not env.plant.p_follows and env._rt.p_rows is None
