@@ -15,7 +15,7 @@ import envs
 from agents.lqr_policy import LQRPolicy
 from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
-from envs.randomize import Uniform
+from envs.randomize import Uniform, constant_inputs
 
 ARM = "Lagrange/TwoLinkArm-v1"
 DEFAULT = {"Ibar1": (0.05, 0.1)}
@@ -166,6 +166,9 @@ def test_constants_are_computed_at_each_copy_s_values():
     p_rows = vec.unwrapped._rt.p_rows
     assert p_rows[1] == single.unwrapped.plant.p  # every constant, recomputed
     assert p_rows.half_travel[0] == gym.make(CRANK).unwrapped.plant.p.half_travel
+    # recomputed only where a parameter they read (R, l, h: the linkage) moved
+    read = constant_inputs(vec.unwrapped.plant)
+    assert [k for k, r in zip(vec.unwrapped.system.parameters, read) if r] == ["R", "l", "h"]
     for _ in range(30):
         a = np.full(vec.action_space.shape, 0.3, dtype=np.float32)
         r = vec.step(a)[1]
