@@ -229,3 +229,20 @@ def test_a_pickled_env_draws_on_as_the_original():
         a, b = vec.step(_zeros(vec)), twin.step(_zeros(twin))
         assert np.array_equal(a[0], b[0])
         assert all(np.array_equal(a[4]["params"][k], b[4]["params"][k]) for k in declared)
+
+
+def test_gymnasium_s_sync_vector_env_of_single_envs_matches_the_native_one():
+    declared = {
+        "Ibar1": Uniform(0.05, 0.1),
+        "Ibar2": {"dist": "truncnormal", "mean": 0.08, "std": 0.01, "low": 0.06, "high": 0.1,
+                  "when": 5},
+    }  # fmt: skip
+    made = [
+        gym.make_vec(ARM, 3, vectorization_mode=mode, randomize=declared, observe_params=True)
+        for mode in ("sync", "vector_entry_point")
+    ]
+    assert np.array_equal(made[0].reset(seed=5)[0], made[1].reset(seed=5)[0])
+    rng = np.random.default_rng(3)
+    for _ in range(12):  # through two redraws of Ibar2
+        a = rng.uniform(-1, 1, made[0].action_space.shape).astype(np.float32)
+        assert np.array_equal(made[0].step(a)[0], made[1].step(a)[0])
