@@ -260,6 +260,8 @@ class Runtime:
         self._params: dict = {}  # `params` of a row (None: all), until `set_params`
         self._views()
         self._compile()
+        if self.per_row and len(layout.context):  # observed parameters: the env's values
+            self.set_params(slice(None), self.P.copy())
 
     @property
     def layout(self) -> Plant:
