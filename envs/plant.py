@@ -27,6 +27,7 @@ from dynamics.system import method_tableau
 
 from . import checks
 from .checks import checked_rows, positive_float, positive_int, real_array
+from .perturb import Perturbations
 from .task import Angle, AngleError, Derived, Task, Value, resolve
 
 # column operations of the observation kernel: (op, source, second source)
@@ -41,6 +42,8 @@ ENV_OPTIONS = {
     "randomize": "model parameters drawn at every reset of each copy, {name: (low, high)} "
     "(uniform, absolute values); {} steps each copy with its own values, set by "
     "reset(options={'params': ...}) (default None: every copy has the env's values)",
+    "perturb": "observation and action noise, motor response, delay, pushes: a dict with "
+    "keys obs_noise, action_noise, motor_k, delay, push (see envs.perturb; default None: off)",
 }
 """The env options besides the model's parameters (by name), with what they mean."""
 
@@ -132,6 +135,8 @@ class Plant:
     # name -> (low, high) drawn at each reset, or None: every copy steps with `system`'s
     # values (the task functions' record `p` is always `system`'s: the nominal values)
     randomize: dict | None = None
+    # the checked `perturb=` option (envs.perturb), or None: the env's runtime applies it
+    perturb: Any = None
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:
@@ -159,6 +164,7 @@ class Plant:
         if get("randomize") is not None:
             plant.randomize = checked_ranges(plant.system, get("randomize"))
             _warn_nominal(plant, options, opts.get("max_input"))
+        plant.perturb = Perturbations.parse(get("perturb"), plant)
         return plant
 
     @property

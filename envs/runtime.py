@@ -30,6 +30,7 @@ from numba import njit
 from dynamics.system import BLOCK, method_tableau
 
 from . import checks, fused, names
+from .perturb import Perturber
 from .plant import Plant
 from .task import Derived
 
@@ -220,7 +221,7 @@ class Runtime:
     """N rows of a task (see the module docstring). Public arrays are read-only views for
     wrappers; `reset_rows` and `step` are the only writers."""
 
-    def __init__(self, plant: Plant, n: int, *legacy):
+    def __init__(self, plant: Plant, n: int, *legacy, perturbed: bool = False):
         if legacy:  # the former (layout, n, control_period, substeps, integrator, threads)
             names = ("control_period", "substeps", "integrator", "num_threads")
             plant = dataclasses.replace(plant, **dict(zip(names, legacy)))
@@ -253,6 +254,8 @@ class Runtime:
         self.P = np.tile(s.kernels()[1], (n, 1)) if self.per_row else None
         self.given = np.zeros(self.P.shape, dtype=bool) if self.per_row else None  # by reset
         self._params: dict = {}  # `params` of a row (None: all), until `set_params`
+        # the plant's perturbations (envs.perturb), applied only by the env's own runtime
+        self.perturber = Perturber(plant.perturb, plant, n) if perturbed and plant.perturb else None
         self._views()
         self._compile()
 
@@ -319,7 +322,7 @@ class Runtime:
         thread steps the rows; else None (the step of separate calls)."""
         self._fused = None
         self._fused_bound: dict = {}
-        if self.num_threads > 1 and self.n > BLOCK:
+        if self.num_threads > 1 and self.n > BLOCK or self.perturber is not None:
             return
         if not all(hasattr(f, "py_func") for f in compiled_functions.values()):
             return
@@ -429,6 +432,7 @@ class Runtime:
         state.setdefault("P", None)
         state.setdefault("given", None)
         state.setdefault("_params", {})
+        state.setdefault("perturber", None)
         self.__dict__.update(state)
         self._views()
         self._compile()
@@ -485,6 +489,10 @@ class Runtime:
         np.clip(obs, lay.obs_low, lay.obs_high, out=obs)
         self._obs64[rows] = obs
         self.O[rows] = obs
+        if self.perturber is not None:
+            index = np.arange(self.n)[rows]
+            self.perturber.clear(index)
+            self.perturber.observe(self._obs64, self.O, index)
 
     def step(self, actions: np.ndarray, horizon: int | None) -> bool:
         """Advance every row one control period under `actions` (N, n_a), finite; the
@@ -504,7 +512,17 @@ class Runtime:
             return code > 0
         if not apply_actions(actions, lay.input_mid, lay.input_half, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
-        if self.per_row:
+        pushed = None
+        if self.perturber is not None:  # the applied inputs (delayed, lagged, noisy), pushes
+            self.perturber.inputs(self.U, lay.actuated)
+            pushed = self.perturber.pushes(self.T, self.X, self.P)
+        if pushed is not None:
+            P = self.perturber.P if self.P is None else self.P
+            self.system.step_pushed_unchecked(
+                self.T, self.X, self.U, P, pushed, self.control_period, self.substeps,
+                self._X_next, self.integrator,
+            )  # fmt: skip
+        elif self.per_row:
             self.system.step_rows_unchecked(
                 self.T, self.X, self.U, self.P, self.control_period, self.substeps,
                 self._X_next, self.integrator, self.num_threads,
@@ -518,6 +536,8 @@ class Runtime:
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
         bad = self._evaluate(self._steps_left)
+        if self.perturber is not None:
+            self.perturber.observe(self._obs64, self.O)
         return bool(diverged) or bool(bad)
 
     def _bind_fused(self, actions: np.ndarray):
