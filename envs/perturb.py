@@ -55,6 +55,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 KEYS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 PUSH_KEYS = ("force", "every", "duration", "point")
@@ -199,7 +200,7 @@ def _push(value, plant) -> Push:
 
 class Perturber:
     """The perturbations' state of N copies: delay lines, motor states, pushes and each
-    copy's random numbers. `reseed` at a reset, `inputs` before a step, `observe` after."""
+    copy's random numbers. `reseed` at a reset, `before_step`, then `observe` after it."""
 
     def __init__(self, spec: Perturbations, plant, n: int):
         self.spec, self.plant, self.n = spec, plant, n
@@ -212,10 +213,11 @@ class Perturber:
         self.dims = 0 if push is None else push.dims
         self.force = np.zeros((n, self.dims))  # the push acting on each copy, N
         self.left = np.zeros(n, dtype=np.int64)  # control periods it still acts
-        if push is not None:
-            self.chance = -math.expm1(-plant.control_period / push.every)  # a start per period
+        self.applied = np.zeros((n, n_a))  # the inputs of the last step
+        self.W = np.zeros((n, 0 if push is None else plant.system.n_q))  # its pushes
+        self.chance = 0.0 if push is None else -math.expm1(-plant.control_period / push.every)
+        if push is not None:  # (chance: a push starts in a control period without one)
             self.P = np.tile(plant.system.kernels()[1], (n, 1))  # the env's parameters
-            self.W = np.zeros((n, plant.system.n_q))
         # each record: action noise, observation noise, a push's direction and its start
         self._cols = {}
         width = 0
@@ -230,8 +232,9 @@ class Perturber:
         self.uniform = np.zeros((n, BUFFER, 1 if push else 0))
         self.cursor = np.full(n, BUFFER, dtype=np.int64)
         self._all = np.arange(n)
-        self._record = np.zeros((n, width))
-        self._start = np.zeros((n, self.uniform.shape[2]))
+        # the kernel's arguments for the perturbations that are off
+        self.k = np.ones(n_a) if spec.motor_k is None else spec.motor_k
+        self.action_std = np.zeros(0) if spec.action_noise is None else spec.action_noise
 
     # ---- random numbers ----------------------------------------------------------------
     def reseed(self, rows, rngs) -> None:
@@ -244,17 +247,15 @@ class Perturber:
                 self.rngs[i] = np.random.default_rng(rng.bit_generator.random_raw())
         self.cursor[rows] = BUFFER
 
-    def _draw(self, rows) -> None:
-        """The next record of the copies `rows` (an index array) into `_record`, `_start`."""
+    def _fill(self, rows) -> None:
+        """New buffers of random numbers for the copies `rows` (an index array) whose
+        buffers are used up."""
         for i in rows[self.cursor[rows] >= BUFFER]:
             rng = self.rngs[i]
             self.normal[i] = rng.standard_normal((BUFFER, self.width))
             if self.uniform.shape[2]:
                 self.uniform[i] = rng.random((BUFFER, 1))
             self.cursor[i] = 0
-        self._record[rows] = self.normal[rows, self.cursor[rows]]
-        self._start[rows] = self.uniform[rows, self.cursor[rows]]
-        self.cursor[rows] += 1
 
     # ---- the three hooks ---------------------------------------------------------------
     def clear(self, rows) -> None:
@@ -264,43 +265,25 @@ class Perturber:
         self.force[rows] = 0.0
         self.left[rows] = 0
 
-    def inputs(self, U: np.ndarray, actuated: np.ndarray) -> None:
-        """Draw this step's record; replace the commanded inputs U[:, actuated] by the
-        applied ones: delayed, through the motor response, noisy, clipped."""
-        self._draw(self._all)
-        spec = self.spec
-        u = U[:, actuated]
-        if spec.delay:  # the command of `delay` steps ago comes out, this one goes in
-            oldest = self.queue[:, self.head].copy()
-            self.queue[:, self.head] = u
+    def before_step(self, actions, T, X, P) -> tuple[np.ndarray, np.ndarray]:
+        """(applied, W) for a step under `actions` (N, n_a), finite, from states X at
+        times T with each row's parameters P: the inputs applied to the actuated inputs
+        (N, n_a) and the generalised forces of the pushes (N, n_q; (N, 0) without)."""
+        if self.cursor.max() >= BUFFER:
+            self._fill(self._all)
+        spec, plant, push = self.spec, self.plant, self.spec.push
+        _step(actions, plant.input_mid, plant.input_half, self.low, self.high, self.queue,
+              self.head, self.k, self.u_prev, self.action_std, self.normal, self.uniform,
+              self.cursor, self._cols["action"].start, self._cols["direction"].start,
+              self.chance, 0.0 if push is None else push.force,
+              0 if push is None else push.periods, self.force, self.left,
+              self.applied)  # fmt: skip
+        if spec.delay:
             self.head = (self.head + 1) % spec.delay
-            u = oldest
-        if spec.motor_k is not None:
-            k = spec.motor_k  # k = 1 is no response at all: u exactly
-            u = np.where(k == 1.0, u, self.u_prev + k * (u - self.u_prev))
-            self.u_prev = u
-        if spec.action_noise is not None:
-            u = u + spec.action_noise * self._record[:, self._cols["action"]]
-        U[:, actuated] = np.clip(u, self.low, self.high)
-
-    def pushes(self, T: np.ndarray, X: np.ndarray, P: np.ndarray | None) -> np.ndarray | None:
-        """The generalised forces (N, n_q) of the pushes acting over this step, at the
-        states X and each row's parameters P (None: the env's), after starting new ones
-        with this step's record; None without pushes."""
-        push = self.spec.push
-        if push is None:
-            return None
-        idle = self.left == 0
-        self.force[idle] = 0.0
-        start = idle & (self._start[:, 0] < self.chance)
-        if start.any():
-            d = self._record[start, self._cols["direction"]]
-            self.force[start] = push.force * d / np.linalg.norm(d, axis=1, keepdims=True)
-            self.left[start] = push.periods
-        self.left[self.left > 0] -= 1  # this step is one of the push's periods
-        module = self.plant.system.kernels()[0]
-        module.point_forces_batch(T, X, self.P if P is None else P, push.index, self.force, self.W)
-        return self.W
+        if push is not None:
+            module = plant.system.kernels()[0]
+            module.point_forces_batch(T, X, P, push.index, self.force, self.W)
+        return self.applied, self.W
 
     def observe(self, obs64: np.ndarray, O: np.ndarray, rows=None) -> None:
         """O[rows] = the observations obs64[rows] with noise, clipped into their bounds;
@@ -309,9 +292,57 @@ class Perturber:
         if rows is None:
             rows = self._all
         else:
-            self._draw(rows)
-        std = self.spec.obs_noise
-        if std is None:
+            self._fill(rows)
+            self.cursor[rows] += 1
+        if self.spec.obs_noise is None:
             return
-        noisy = obs64[rows] + std * self._record[rows, self._cols["obs"]]
-        O[rows] = np.clip(noisy, self.plant.obs_low, self.plant.obs_high)
+        _observe(obs64, O, rows, self.spec.obs_noise, self.normal, self.cursor,
+                 self._cols["obs"].start, self.plant.obs_low, self.plant.obs_high)  # fmt: skip
+
+
+@njit(cache=True)
+def _step(actions, mid, half, low, high, queue, head, k, u_prev, std, normal, uniform, cursor,
+          a0, d0, chance, size, periods, force, left, applied) -> None:  # fmt: skip
+    """Each row's next record (at cursor, then advanced); its commanded inputs (the clipped
+    actions as inputs) through the delay line (the oldest out at `head`, the new one in),
+    the motor response (k = 1: none), the noise std (none if empty) and the limits into
+    `applied`; and where no push acts, a new one with chance `chance`: `size` along the
+    record's direction (from column d0), for `periods` steps (`left` counts this one)."""
+    for b in range(actions.shape[0]):
+        c = cursor[b]
+        for j in range(actions.shape[1]):
+            a = min(max(actions[b, j], -1.0), 1.0)
+            u = mid[j] + a * half[j]
+            if queue.shape[1]:
+                u, queue[b, head, j] = queue[b, head, j], u
+            if k[j] != 1.0:
+                u = u_prev[b, j] + k[j] * (u - u_prev[b, j])
+            u_prev[b, j] = u
+            if std.shape[0]:
+                u = u + std[j] * normal[b, c, a0 + j]
+            applied[b, j] = min(max(u, low[j]), high[j])
+        if force.shape[1]:
+            if left[b] == 0:
+                force[b, :] = 0.0
+                if uniform[b, c, 0] < chance:
+                    norm = 0.0
+                    for i in range(force.shape[1]):
+                        norm += normal[b, c, d0 + i] ** 2
+                    norm = math.sqrt(norm)
+                    for i in range(force.shape[1]):
+                        force[b, i] = size * normal[b, c, d0 + i] / norm
+                    left[b] = periods
+            if left[b] > 0:
+                left[b] -= 1
+        cursor[b] = c + 1
+
+
+@njit(cache=True)
+def _observe(obs64, O, rows, std, normal, cursor, o0, low, high) -> None:
+    """O[r] = obs64[r] plus the noise std times the record last taken (from column o0),
+    clipped into [low, high], for each row r in rows."""
+    for r in rows:
+        c = cursor[r] - 1
+        for j in range(obs64.shape[1]):
+            v = obs64[r, j] + std[j] * normal[r, c, o0 + j]
+            O[r, j] = min(max(v, low[j]), high[j])

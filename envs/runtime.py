@@ -322,19 +322,22 @@ class Runtime:
         thread steps the rows; else None (the step of separate calls)."""
         self._fused = None
         self._fused_bound: dict = {}
-        if self.num_threads > 1 and self.n > BLOCK or self.perturber is not None:
+        if self.num_threads > 1 and self.n > BLOCK:
             return
         if not all(hasattr(f, "py_func") for f in compiled_functions.values()):
             return
         module, _ = self.system.kernels()
-        rows = self.per_row  # each row's own parameters: the kernels that read them so
+        pushed = self._pushed
+        rows = self.per_row or pushed  # each row's own parameters: the kernels that read them so
         functions = {
             "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
             "_erk": module.erk_batch_rows if rows else module.erk_batch,
             "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
+            **({"_erk_w": module.erk_batch_w} if pushed else {}),
             **compiled_functions,
         }  # fmt: skip
         plan, self._fused_C, self._fused_K = self._plan()
+        plan["perturbed"], plan["pushed"] = self.perturber is not None, pushed
         types = dict(zip(("_Rows", "_Actions", "_Goal"), self._types))
         self._fused = fused.build(plan, functions, types)
 
@@ -412,6 +415,9 @@ class Runtime:
         module, self._p_model = self.system.kernels()
         # what the model's kernels take as parameters: the system's, or each row's own
         self._p_kernel = self.P if self.per_row else self._p_model
+        # pushes step through the integrator that adds forces, which reads rows' parameters
+        self._pushed = self.perturber is not None and self.perturber.spec.push is not None
+        self._p_step = self.perturber.P if self._pushed and not self.per_row else self._p_kernel
         energy = module.energy_batch_rows if self.per_row else module.energy_batch
         self._energy = _warm(energy, self.T, self.X, self._p_kernel, self._E)
         self._compile_fused(jitted)
@@ -421,7 +427,7 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_p_kernel"):  # fmt: skip
+                  "_E0", "_p_kernel", "_p_step"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -499,28 +505,32 @@ class Runtime:
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
         lay = self.plant
+        perturbed = ()
+        if self.perturber is not None:  # the inputs applied and the pushes (envs.perturb)
+            if not np.isfinite(actions).all():
+                raise NonFiniteActions("actions contain NaN or inf")
+            perturbed = self.perturber.before_step(actions, self.T, self.X, self._p_step)
         if self._fused is not None:
             f = actions.flags
             step = self._fused_bound.get((actions.dtype, f.c_contiguous, f.writeable, f.aligned))
             if step is None:
                 step = self._bind_fused(actions)
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
-                        self._fused_K, self._p_kernel, lay.p,
-                        -1 if horizon is None else horizon)  # fmt: skip
+                        self._fused_K, self._p_step, lay.p,
+                        -1 if horizon is None else horizon, *perturbed)  # fmt: skip
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
+            if perturbed:
+                self.perturber.observe(self._obs64, self.O)
             return code > 0
         if not apply_actions(actions, lay.input_mid, lay.input_half, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
-        pushed = None
-        if self.perturber is not None:  # the applied inputs (delayed, lagged, noisy), pushes
-            self.perturber.inputs(self.U, lay.actuated)
-            pushed = self.perturber.pushes(self.T, self.X, self.P)
-        if pushed is not None:
-            P = self.perturber.P if self.P is None else self.P
+        if perturbed:
+            self.U[:, lay.actuated] = perturbed[0]
+        if self._pushed:
             self.system.step_pushed_unchecked(
-                self.T, self.X, self.U, P, pushed, self.control_period, self.substeps,
-                self._X_next, self.integrator,
+                self.T, self.X, self.U, self._p_step, perturbed[1], self.control_period,
+                self.substeps, self._X_next, self.integrator,
             )  # fmt: skip
         elif self.per_row:
             self.system.step_rows_unchecked(
@@ -536,7 +546,7 @@ class Runtime:
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
         bad = self._evaluate(self._steps_left)
-        if self.perturber is not None:
+        if perturbed:
             self.perturber.observe(self._obs64, self.O)
         return bool(diverged) or bool(bad)
 
@@ -545,7 +555,9 @@ class Runtime:
         numba's cache on first use), bound as `bind` does."""
         f = actions.flags
         args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
-                self._p_kernel, self.plant.p, -1)  # fmt: skip
+                self._p_step, self.plant.p, -1)  # fmt: skip
+        if self.perturber is not None:  # samples of the applied inputs and the forces
+            args += (self.perturber.applied, self.perturber.W)
         self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
         step = bind(self._fused, args)
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step

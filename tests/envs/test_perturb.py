@@ -52,16 +52,20 @@ def test_off_by_default_keeps_the_fused_step(value):
     for env in (gym.make(ARM, perturb=value).unwrapped, _vec(ARM, 3, perturb=value).unwrapped):
         assert env._rt.perturber is None
         assert env._rt._fused is not None
+        assert "applied" not in envs.fused.source(env._rt._plan()[0])
 
 
 @pytest.mark.parametrize("env_id", envs.ENV_IDS)
-def test_neutral_perturbations_step_bit_for_bit_like_none(env_id):
-    """Zero noise, k = 1, no delay and pushes of no force take the perturbed path
-    (separate calls, the integrator that adds generalised forces) and change nothing: the
-    hooks are exact identities, and the fused step is not involved."""
+@pytest.mark.parametrize("fused", [True, False])
+def test_neutral_perturbations_step_bit_for_bit_like_none(env_id, fused):
+    """Zero noise, k = 1, no delay and pushes of no force take the perturbed path (the
+    perturbed fused step, or the separate calls; the integrator that adds generalised
+    forces) and change nothing: the hooks are exact identities."""
     plain = gym.make(env_id).unwrapped
     neutral = gym.make(env_id, perturb=NEUTRAL).unwrapped
-    assert neutral._rt._fused is None and plain._rt._fused is not None
+    assert neutral._rt.perturber is not None and plain._rt.perturber is None
+    if not fused:
+        neutral._rt._fused = None  # the step of separate calls
     actions = _actions(plain, 30)
     for a, b in zip(_rollout(plain, actions, 5), _rollout(neutral, actions, 5)):
         assert np.array_equal(a, b)
@@ -70,6 +74,7 @@ def test_neutral_perturbations_step_bit_for_bit_like_none(env_id):
 def test_neutral_perturbations_change_no_row_of_a_vector_env():
     """Nine rows: the pushed integrator's vector lanes (eight rows and more)."""
     plain, neutral = _vec(ACROBOT, 9), _vec(ACROBOT, 9, perturb=NEUTRAL)
+    assert neutral.unwrapped._rt._fused is not None
     plain.reset(seed=3), neutral.reset(seed=3)
     for a in _actions(plain, 20):
         for x, y in zip(plain.step(a)[:4], neutral.step(a)[:4]):
