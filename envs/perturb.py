@@ -44,6 +44,10 @@ Seeding: each copy's perturbations draw from a generator spawned from that copy'
 generator at every reset (`Generator.spawn`, which draws nothing from it), so start states
 are those of the unperturbed env, the single env and a vector env's copy with the same
 seed are perturbed alike, and a reset clears the copy's delay line, motor state and push.
+
+A perturbed env steps through a variant of the fused step (`envs.fused`) that takes the
+applied inputs and the pushes' generalised forces, and the perturbations' own work per
+step is one compiled kernel (`_step`): benchmarks/envs.py --perturb measures the cost.
 """
 
 from __future__ import annotations

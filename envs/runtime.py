@@ -16,6 +16,11 @@ The task's own functions are compiled with numba here when numba can type them, 
 as plain Python otherwise (a warning says so once per function). When all of them compile
 and one thread steps the rows, the whole step is one compiled call (`envs.fused`), with the
 same results bit for bit: the per-row arrays are views of a few flat buffers for that.
+
+The env's own runtime (`perturbed=True`) applies the plant's perturbations (`envs.perturb`):
+before a step, the inputs applied and the pushes' generalised forces replace the commanded
+inputs (a variant of the fused step takes them); after it, the observation handed out gets
+its noise. Other runtimes of the plant (`env.simulator(n)`) step the nominal plant.
 """
 
 from __future__ import annotations
