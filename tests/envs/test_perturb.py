@@ -325,3 +325,26 @@ def test_a_push_moves_the_unactuated_coordinates():
         moved = env.step(hold)[4]["state"]
         still = plain.step(hold)[4]["state"]
     assert abs(moved[0] - np.pi) > 1e-3 and abs(still[0] - np.pi) < 1e-9
+
+
+def test_a_randomised_copy_is_pushed_like_a_single_env_with_its_values():
+    """Per-copy parameters (randomize=) and pushes together: the pushes' generalised
+    forces and the integrator read each copy's own parameters."""
+    n, row, value = 3, 1, 0.11  # Ibar2 (nominal 1/12) sets none of the task's numbers
+    vec = _vec(ARM, n, randomize={}, perturb=ALL)
+    single = gym.make(ARM, Ibar2=value, perturb=ALL)
+    values = np.full(n, 1 / 12)
+    values[row] = value
+    obs, _ = vec.reset(seed=4, options={"params": {"Ibar2": values}})
+    o1, _ = single.reset(seed=4 + row)
+    assert np.array_equal(obs[row], o1)
+    pushed = 0
+    for a in _actions(single, 30):
+        batch = np.zeros((n, 2), np.float32)
+        batch[row] = a
+        obs, r, *_, info = vec.step(batch)
+        o1, r1, *_, i1 = single.step(a)
+        assert np.array_equal(obs[row], o1) and r[row] == r1
+        assert np.array_equal(info["push"][row], i1["push"])
+        pushed += bool(i1["push"].any())
+    assert pushed > 0
