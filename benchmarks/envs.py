@@ -1,6 +1,6 @@
 """Speed and accuracy of the Lagrange environments against Gymnasium's Acrobot-v1.
 
-    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick] [--per-copy] [--sizes N ...]
+    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick] [--per-copy] [--perturb] [--sizes N ...]
 
 Measured in one run, so the ratios hold on a shared machine even when absolute figures
 move: `gymnasium.make` time per id (warm model cache; numba's import, paid once per process,
@@ -292,6 +292,51 @@ def _per_copy_row(label: str, runs: dict) -> None:
           f"| {np.median(every / per_copy):.3f} |")  # fmt: skip
 
 
+PERTURBATIONS = {
+    "noise": {"obs_noise": 0.01, "action_noise": 0.1},
+    "motor and delay": {"motor_k": 0.5, "delay": 1},
+    "pushes": {"push": {"force": 5.0}},
+    "all": {"obs_noise": 0.01, "action_noise": 0.1, "motor_k": 0.5, "delay": 1,
+            "push": {"force": 5.0}},
+}  # fmt: skip
+
+
+def perturb_table(sizes, seconds: float, rounds: int = 5) -> None:
+    """The cost of perturbations (`perturb=`, a step of separate calls instead of the fused
+    one) against none: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
+    `gymnasium.make` and the native vector env at each N, in alternating rounds (the ratio
+    to no perturbation taken within each round, medians)."""
+    arm_id = "Lagrange/TwoLinkArm-v1"
+    kinds = {"off": None, **PERTURBATIONS}
+    print("\n| TwoLinkArm-v1, one thread | off (env-steps/s) | "
+          + " | ".join(f"{k} (ratio to off)" for k in PERTURBATIONS) + " |")  # fmt: skip
+    print("|---|---|" + "---|" * len(PERTURBATIONS))
+    actions = np.random.default_rng(0).uniform(-1, 1, (1000, 2)).astype(np.float32)
+    single = {k: gym.make(arm_id, perturb=v) for k, v in kinds.items()}
+    runs = {k: [] for k in kinds}
+    for _ in range(rounds):
+        for k, env in single.items():
+            runs[k].append(steps_per_second(env, actions, seconds / rounds))
+    _ratio_row("single env (gymnasium.make)", runs)
+    for n in sizes:
+        steppers = {
+            k: vector_stepper(gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point",
+                                           num_threads=1, perturb=v))
+            for k, v in kinds.items()
+        }  # fmt: skip
+        runs = {k: [] for k in kinds}
+        for _ in range(rounds):
+            for k, step in steppers.items():
+                runs[k].append(rate(step, n, seconds / rounds))
+        _ratio_row(f"native vector env, N = {n}", runs)
+
+
+def _ratio_row(label: str, runs: dict) -> None:
+    off = np.array(runs["off"])
+    ratios = [f"{np.median(np.array(v) / off):.2f}" for k, v in runs.items() if k != "off"]
+    print(f"| {label} | {np.median(off):,.0f} | " + " | ".join(ratios) + " |")
+
+
 def vector_stepper(vec):
     """A vector env as a stepping function over pre-drawn actions (reset once)."""
     rng = np.random.default_rng(0)
@@ -317,8 +362,15 @@ def main(argv: list[str] | None = None) -> None:
         "--per-copy", action="store_true",
         help="only the cost of per-copy parameters (randomize=) against shared ones",
     )  # fmt: skip
+    parser.add_argument(
+        "--perturb", action="store_true",
+        help="only the cost of perturbations (perturb=) against none",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     seconds = 0.5 if args.quick else 2.0
+    if args.perturb:
+        perturb_table(args.sizes, 2 * seconds)
+        return
     if args.per_copy:
         per_copy_table(args.sizes, 2 * seconds)
         return

@@ -84,12 +84,14 @@ def _solve_lines(k: int, nonzero: list[list[bool]]) -> list[str]:
     return lines
 
 
-def _lanes(n: int, nu: int, prog: Program, n_p: int, per_row: bool = False) -> str:
+def _lanes(n: int, nu: int, prog: Program, n_p: int) -> str:
     """`derivative_lanes(T, XS, U, p, D)`: D = dx/dt for rows held as columns (XS (2n, m),
     U (n_u, m), T (m,)), one straight-line body per row with no calls, so that LLVM
     evaluates several rows per instruction. The kernels' fixed-step integrators use it.
-    per_row: `derivative_lanes_p(T, XS, U, P, D)`, the same body reading each column's own
-    parameters from P (n_p, m), for copies stepped with their own parameter values."""
+    Two variants with the same body: `derivative_lanes_p(T, XS, U, P, D)` reads each
+    column's own parameters from P (n_p, m), for copies stepped with their own parameter
+    values, and `derivative_lanes_w(T, XS, U, P, W, D)` also adds the generalised forces W
+    (n, m) to the forcing (external pushes; W = 0 gives the same results bit for bit)."""
     matrix, rhs = prog.results["kkt"], prog.results["rhs"]
     k = len(rhs)
     printer = _LanePrinter({"fully_qualified_modules": True})
@@ -99,26 +101,60 @@ def _lanes(n: int, nu: int, prog: Program, n_p: int, per_row: bool = False) -> s
     exprs = [kkt[i][j] for i, j in upper if nonzero[i][j]] + list(rhs)
     names = [f"a{i}_{j}" for i, j in upper if nonzero[i][j]]
     names += [f"r{i}" for i in range(k)]
-    body = ["t = T[b]"]
-    body += [f"p{k} = P[{k}, b]" for k in range(n_p)] if per_row else []
-    body += [f"q{i} = XS[{i}, b]" for i in range(n)] + [f"qd{i} = XS[{n + i}, b]" for i in range(n)]
-    body += [f"u{j} = U[{j}, b]" for j in range(nu)]
-    body += [f"{sym} = {printer.doprint(sub)}" for sym, sub in prog.needed(exprs)]
-    body += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, exprs)]
-    body += [f"a{i}_{j} = 0.0" for i, j in upper if not nonzero[i][j]]
-    body += _solve_lines(k, nonzero)
-    body += [f"D[{i}, b] = qd{i}" for i in range(n)] + [f"D[{n + i}, b] = z{i}" for i in range(n)]
+    unpack = [f"q{i} = XS[{i}, b]" for i in range(n)] + [
+        f"qd{i} = XS[{n + i}, b]" for i in range(n)
+    ]
+    unpack += [f"u{j} = U[{j}, b]" for j in range(nu)]
+    unpack += [f"{sym} = {printer.doprint(sub)}" for sym, sub in prog.needed(exprs)]
+    unpack += [f"{name} = {printer.doprint(e)}" for name, e in zip(names, exprs)]
+    solve = [f"a{i}_{j} = 0.0" for i, j in upper if not nonzero[i][j]]
+    solve += _solve_lines(k, nonzero)
+    solve += [f"D[{i}, b] = qd{i}" for i in range(n)] + [f"D[{n + i}, b] = z{i}" for i in range(n)]
+    per_row = [f"p{k} = P[{k}, b]" for k in range(n_p)]
+    variants = [
+        ("derivative_lanes(T, XS, U, p, D)", [f"p{k} = p[{k}]" for k in range(n_p)], [], []),
+        ("derivative_lanes_p(T, XS, U, P, D)", [], per_row, []),
+        ("derivative_lanes_w(T, XS, U, P, W, D)", [], per_row,
+         [f"r{i} = r{i} + W[{i}, b]" for i in range(n)]),
+    ]  # fmt: skip
+    text = []
+    for signature, head, row_head, forces in variants:
+        lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def {signature}:"]
+        lines += ["    " + line for line in head]
+        lines.append("    for b in range(XS.shape[1]):")
+        body = ["t = T[b]", *row_head, *unpack, *forces, *solve]
+        lines += ["        " + line for line in body]
+        text.append("\n".join(lines))
+    return "\n".join(text)
+
+
+def _points(d: Derived) -> str:
+    """`point_forces(t, x, p, k, f, out)`: out = the generalised forces of the force f (its
+    components in the basis of the point's velocity) at point k of the spec's `points`,
+    from their own common subexpressions (the equations' code is left as it is)."""
+    code = d.code
+    n = len(code.x) // 2
+    header = [f"q{i} = x[{i}]" for i in range(n)]
+    header += [f"p{k} = p[{k}]" for k in range(len(code.p))]
+    header += [f"f{j} = f[{j}]" for j in range(3)]
+    printer = _Printer({"fully_qualified_modules": True})
     lines = [
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def derivative_lanes_p(T, XS, U, P, D):"
-        if per_row
-        else "def derivative_lanes(T, XS, U, p, D):",
+        "def point_forces(t, x, p, k, f, out):",
     ]
-    lines += [] if per_row else [f"    p{k} = p[{k}]" for k in range(n_p)]
-    lines.append("    for b in range(XS.shape[1]):")
-    lines += ["        " + line for line in body]
+    lines += ["    " + h for h in header]
+    for index, forces in enumerate(code.points.values()):
+        prog = Program({"Q": forces}, prefix="e")
+        lines.append(f"    {'if' if index == 0 else 'elif'} k == {index}:")
+        lines += [f"        {sym} = {printer.doprint(sub)}" for sym, sub in prog.steps]
+        lines += [
+            f"        out[{i}] = {printer.doprint(e)}" for i, e in enumerate(prog.results["Q"])
+        ]
+    if not code.points:
+        lines.append("    out[:] = math.nan")
+    lines.append("    return")
     return "\n".join(lines)
 
 
@@ -219,6 +255,8 @@ def generate(d: Derived, key: str) -> str:
         f"N_P = {len(spec.parameters)}",
         f"N_OUT = {len(code.outputs)}",
         f"K = {K}",
+        f"POINTS = {tuple(str(k) for k in spec.points)!r}",
+        f"POINT_DIMS = {tuple(len(v) for v in spec.points.values())!r}",
     ]
     x_args = unpack_x + unpack_p
     x_zu = x_args + unpack_u + unpack_z
@@ -278,6 +316,6 @@ def generate(d: Derived, key: str) -> str:
         )
     )
     parts.append(_lanes(n, nu, prog, len(spec.parameters)))
-    parts.append(_lanes(n, nu, prog, len(spec.parameters), per_row=True))
+    parts.append(_points(d))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]
     return "\n".join(parts) + "\n\n" + kernels.lstrip("\n")

@@ -27,7 +27,7 @@ step 3). The tests cross-check it against `LagrangesMethod` on the arm.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import sympy as sp
@@ -35,7 +35,7 @@ import sympy.physics.mechanics as me
 
 from .calculus import compact as _compact
 from .calculus import diff as _diff
-from .spec import ModelSpec, t
+from .spec import ModelSpec, generalized_forces, t
 
 PFAFFIAN = "constraints must be linear in the coordinate rates (Pfaffian form)."
 
@@ -59,6 +59,8 @@ class CodeForms:
     z: tuple  # (qdd0.., lam0..)
     u: tuple  # (u0..)
     p: tuple  # (p0..)
+    # name -> the generalised forces (n) of a force (f0, f1[, f2]) at that point
+    points: dict = field(default_factory=dict)
 
 
 class Derived:
@@ -174,6 +176,12 @@ def derive(spec: ModelSpec) -> Derived:
     for name, expr in spec.outputs.items():
         outputs[name] = _compact(on_schedule(convert(expr)))
 
+    force = sp.symbols("f0:3")
+    points = {}
+    for name, v in spec.points.items():  # virtual work of a force at the point
+        Q_point = generalized_forces(q, [(v, sp.Matrix(force[: len(v)]))])
+        points[name] = [_compact(on_schedule(convert(Q_point[c]))) for c in q]
+
     code = CodeForms(
         mass=mass,
         forcing=forcing,
@@ -188,6 +196,7 @@ def derive(spec: ModelSpec) -> Derived:
         z=tuple(Qdd) + tuple(lam),
         u=tuple(plain[u] for u in spec.inputs),
         p=tuple(plain[s] for s in spec.parameters),
+        points=points,
     )
     return Derived(spec, code, _multipliers(spec))
 

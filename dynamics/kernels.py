@@ -411,6 +411,81 @@ def erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, block):
 
 
 @njit(cache=True, error_model="numpy")
+def erk_batch_w(T, X, U, P, W, h, substeps, a, w, c, out, block):
+    """`erk_batch_rows` with the generalised forces W (N, n_q) added to each row's forcing
+    and held over the step (external pushes): `block` rows at a time in vector lanes, by
+    the same operations as `erk_rows_of` (so W = 0 gives its results bit for bit)."""
+    n, n2, nu = X.shape[0], X.shape[1], U.shape[1]
+    s_count = w.shape[0]
+    for lo in range(0, n, block):
+        m = min(n, lo + block) - lo
+        pc = np.empty((P.shape[1], m))
+        wc = np.empty((N_Q, m))
+        x = np.empty((n2, m))
+        xs = np.empty((n2, m))
+        k = np.empty((s_count, n2, m))
+        u = np.empty((nu, m))
+        t = np.empty(m)
+        ts = np.empty(m)
+        for b in range(m):
+            t[b] = T[lo + b]
+            for i in range(P.shape[1]):
+                pc[i, b] = P[lo + b, i]
+            for i in range(N_Q):
+                wc[i, b] = W[lo + b, i]
+            for i in range(n2):
+                x[i, b] = X[lo + b, i]
+            for j in range(nu):
+                u[j, b] = U[lo + b, j]
+        for _ in range(substeps):
+            for s in range(s_count):
+                for b in range(m):
+                    ts[b] = t[b] + c[s] * h
+                if s == 0:
+                    derivative_lanes_w(ts, x, u, pc, wc, k[0])
+                    continue
+                for i in range(n2):
+                    for b in range(m):
+                        xs[i, b] = 0.0
+                    for j in range(s):
+                        f = a[s, j]
+                        if f != 0.0:
+                            for b in range(m):
+                                xs[i, b] += f * k[j, i, b]
+                    for b in range(m):
+                        xs[i, b] = x[i, b] + h * xs[i, b]
+                derivative_lanes_w(ts, xs, u, pc, wc, k[s])
+            for i in range(n2):
+                for b in range(m):
+                    xs[i, b] = 0.0
+                for s in range(s_count):
+                    f = w[s]
+                    if f != 0.0:
+                        for b in range(m):
+                            xs[i, b] += f * k[s, i, b]
+                for b in range(m):
+                    x[i, b] += h * xs[i, b]
+            for b in range(m):
+                t[b] += h
+            if N_C:
+                project_columns_of(t, x, P, lo)
+        for b in range(m):
+            for i in range(n2):
+                out[lo + b, i] = x[i, b]
+
+
+@njit(cache=True, error_model="numpy")
+def point_forces_batch(T, X, P, k, F, out):
+    """out[b] = the generalised forces of the force F[b] at point k, row b's parameters
+    P[b] (`point_forces`); F has the point's 2 or 3 components (padded with zeros)."""
+    f = np.zeros(3)
+    for b in range(X.shape[0]):
+        for j in range(F.shape[1]):
+            f[j] = F[b, j]
+        point_forces(T[b], X[b], P[b], k, f, out[b])
+
+
+@njit(cache=True, error_model="numpy")
 def outputs_batch_rows(T, X, U, P, out):
     """`outputs_batch` with each row's own parameters P (N, n_p)."""
     for b in range(X.shape[0]):

@@ -47,6 +47,10 @@ class ModelSpec:
     outputs: further named expressions of q, qdot, qddot, t, inputs (reported by the system).
     conditions: {statement: expression in the parameters that must be > 0}, checked when
         the model is compiled with numbers (e.g. {"l > R + |h|": l - R - Abs(h)}).
+    points: {name: velocity}, points an external force may act on (the envs' pushes): the
+        velocity of each as a column Matrix of 2 or 3 components in any basis (a force is
+        given by its components in the same basis); a force f there has the generalised
+        forces f . dv/dqdot_s (`generalized_forces`). The first is the default point.
     """
 
     name: str
@@ -61,6 +65,7 @@ class ModelSpec:
     outputs: Mapping = field(default_factory=dict)
     conditions: Mapping = field(default_factory=dict)
     description: str = ""
+    points: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         coords = set(self.coordinates) | set(self.prescribed)
@@ -92,6 +97,14 @@ class ModelSpec:
                     "assumptions than dynamics.spec.t, the time the derivation differentiates "
                     "by; its terms would be constants. Use `from dynamics.spec import t`."
                 )
+        for name, v in self.points.items():
+            if not (isinstance(name, str) and name.isidentifier()):
+                raise ValueError(f"{self.name}: point name {name!r} is not an identifier.")
+            if not (isinstance(v, sp.MatrixBase) and v.shape in ((2, 1), (3, 1))):
+                raise ValueError(
+                    f"{self.name}: points[{name!r}] must be the point's velocity as a column "
+                    f"Matrix of 2 or 3 components, got {v!r:.80}."
+                )
 
     def _expressions(self):
         yield "kinetic", self.kinetic
@@ -101,6 +114,7 @@ class ModelSpec:
         yield from ((f"prescribed[{k}]", v) for k, v in self.prescribed.items())
         yield from ((f"outputs[{k!r}]", v) for k, v in self.outputs.items())
         yield from ((f"conditions[{k!r}]", v) for k, v in self.conditions.items())
+        yield from ((f"points[{k!r}]", v) for k, v in self.points.items())
 
     def fingerprint(self) -> str:
         """A canonical text of everything that determines the derived equations."""
@@ -117,6 +131,8 @@ class ModelSpec:
             repr(sorted((str(k), v) for k, v in self.parameters.items())),
             sp.srepr(sorted(((k, sp.srepr(v)) for k, v in self.conditions.items()))),
         ]
+        if self.points:  # (a spec without points keeps its former fingerprint)
+            parts.append(sp.srepr([(k, sp.srepr(v)) for k, v in self.points.items()]))
         return "\n".join(parts)
 
 

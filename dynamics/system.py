@@ -67,6 +67,10 @@ class System:
                     f"{self.name}: parameters violate {statement} ({self.parameters})."
                 )
         self.units: dict[str, str] = dict(zip(module.PARAMETERS, module.UNITS))
+        # the points an external force may act on: name -> its number of components
+        self.points: dict[str, int] = dict(
+            zip(getattr(module, "POINTS", ()), getattr(module, "POINT_DIMS", ()))
+        )
 
     def __repr__(self) -> str:
         return f"System({self.name!r}, {self.parameters})"
@@ -239,6 +243,41 @@ class System:
             self._m.erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
         else:
             self._m.erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
+
+    def step_pushed_unchecked(
+        self, T, X, U, P, W, dt: float, substeps: int, out: np.ndarray, method: str = "rk4"
+    ) -> None:
+        """`step_rows_unchecked` on one thread with the generalised forces W (N, n_q) added
+        to the equations' forcing and held over dt (external pushes, see `point_forces`);
+        W = 0 steps bit for bit as `step_rows_unchecked`. Unchecked."""
+        a, w, c = method_tableau(method)
+        self._m.erk_batch_w(T, X, U, P, W, dt / substeps, substeps, a, w, c, out, BLOCK)
+
+    def point_forces(self, x, point: str, force, t=0.0) -> np.ndarray:
+        """The generalised forces (..., n_q) of `force` (..., 2 or 3 components, in the basis
+        of the point's declared velocity, N) acting at `point` (one of `points`) in states x:
+        Q_s = force . dv/dqdot_s, by virtual work (`dynamics.spec.generalized_forces`)."""
+        if point not in self.points:
+            close = difflib.get_close_matches(str(point), list(self.points), n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ValueError(
+                f"{self.name} has no point {point!r}.{hint} Known: "
+                f"{', '.join(self.points) or 'none (ModelSpec.points)'}."
+            )
+        dims = self.points[point]
+        f = checks.real_array(self.name, "force", force)
+        if f.ndim == 0 or f.shape[-1] != dims:
+            raise ValueError(
+                f"{self.name}: a force at {point!r} has {dims} components, got shape {f.shape}."
+            )
+        T, X, _, lead = self._batch(t, x, need_u=False)
+        F = _rows(f, lead, X.shape[0])
+        if not np.isfinite(F).all():
+            raise ValueError(f"{self.name}: force contains NaN or inf.")
+        P = np.tile(self._p, (X.shape[0], 1))
+        out = np.empty((X.shape[0], self.n_q))
+        self._m.point_forces_batch(T, X, P, list(self.points).index(point), F, out)
+        return self._finite("point_forces", out, T, X).reshape(lead + (self.n_q,))
 
     def check_parameter_rows(self, values: dict) -> None:
         """ValueError naming the problem unless every row of `values` (name -> (N,) array)

@@ -25,7 +25,7 @@ def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
     thread waits a scheduler timeslice for a core at every step, measured 0.12x the speed
     of one thread at N = 1024 and 0.7x at 16384 (benchmarks/envs.py). Give
     `num_threads=available_cores()` where the cores are yours."""
-    return Runtime(Plant.build(task, options), n)
+    return Runtime(Plant.build(task, options), n, perturbed=True)
 
 
 def available_cores() -> int:
@@ -62,13 +62,17 @@ def start(rt: Runtime, rngs, options: dict | None, rows: list[int], batch: int |
     return x, g, None if params is None else (params, given)
 
 
-def begin(rt: Runtime, rows: list[int], x, g, params) -> None:
-    """Put `rows` of `rt` at the start `start` gave (their parameters, then their states)."""
+def begin(rt: Runtime, rows: list[int], x, g, params, rngs=None) -> None:
+    """Put `rows` of `rt` at the start `start` gave (their parameters, then their states);
+    a perturbed runtime's rows draw their perturbations from generators spawned from their
+    reset generators `rngs` (indexed by row)."""
     if params is not None:
         rt.set_params(rows, params[0])
         rt.drawn[rows] = True
         if params[1] is not None:
             rt.given[rows] = params[1]
+    if rt.perturber is not None and rngs is not None:
+        rt.perturber.reseed(rows, [rngs[i] for i in rows])
     rt.reset_rows(rows, x, g)
 
 

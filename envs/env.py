@@ -28,8 +28,9 @@ class LagrangianEnv(ContractMixin, gym.Env):
 
     `info` carries the physical state, the applied model inputs, the energy, the reward
     terms (clipped into their bounds), `is_success`, `diverged`, for constrained
-    models the constraint residual and, with `randomize=`, the model parameters in force
-    (`params`).
+    models the constraint residual, with `randomize=`, the model parameters in force
+    (`params`) and, with pushes (`perturb=`, see `envs.perturb`), the force of the push
+    acting over the last step (`push`, N; zeros when none).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"]}
@@ -76,7 +77,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             if state is not None:
                 self._np_random.bit_generator.state = state
             raise
-        begin(self._rt, [0], x, g, params)
+        begin(self._rt, [0], x, g, params, [self.np_random])
         self._ready = True
         self._history = []
         if self.render_mode == "human":
@@ -124,6 +125,8 @@ class LagrangianEnv(ContractMixin, gym.Env):
             info["constraint_residual"] = rt.constraint_residual()[0]
         if rt.per_row:  # randomised: the model parameters this copy steps with
             info["params"] = rt.params(0)
+        if rt.perturber is not None and rt.perturber.spec.push is not None:
+            info["push"] = rt.perturber.force[0].copy()  # the push of the last step, N
         return info
 
     # ---- rendering -------------------------------------------------------------------------

@@ -145,6 +145,14 @@ def source(plan: dict) -> str:
         '    action, else 1 if some row diverged, 0 if none did."""',
         "    n = actions.shape[0]",
     ]
+    if plan.get("perturbed"):  # envs.perturb: two more arguments
+        lines[-4:-1] = [
+            "def step(actions, F_, B_, steps, O, C_, K_, p, q, horizon, applied, W):",
+            '    """One control period of every row; -1 (nothing changed) for a NaN or inf',
+            "    action, else 1 if some row diverged, 0 if none did. The inputs `applied`",
+            "    (N, n_a) replace the commanded ones; with pushes, the generalised forces W",
+            '    (N, n_q) are added to the forcing (p: each row\'s parameters)."""',
+        ]
     for name, start, width in plan["floats"]:
         _segment(lines, name, "F_", start, width)
     for name, start in plan["bools"]:
@@ -160,7 +168,16 @@ def source(plan: dict) -> str:
     lines += [
         "    if not _apply(actions, input_mid, input_half, actuated, A, U):",
         "        return -1",
-        "    _erk(T, X, U, p, h, substeps, ta, tw, tc, X_next, block)",
+    ]
+    if plan.get("perturbed"):
+        lines += [
+            "    for b in range(n):",
+            "        for j in range(actuated.shape[0]):",
+            "            U[b, actuated[j]] = applied[b, j]",
+        ]
+    erk = "_erk_w(T, X, U, p, W," if plan.get("pushed") else "_erk(T, X, U, p,"
+    lines += [
+        f"    {erk} h, substeps, ta, tw, tc, X_next, block)",
         "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
         "                            steps_left)",
     ]

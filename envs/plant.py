@@ -26,6 +26,7 @@ from dynamics.system import method_tableau
 
 from . import checks
 from .checks import checked_rows, positive_float, positive_int, real_array
+from .perturb import Perturbations
 from .randomize import Randomization, add_context, warn_nominal
 from .task import Angle, AngleError, Derived, Task, Value, resolve
 
@@ -46,6 +47,8 @@ ENV_OPTIONS = {
     "observe_params": "True: the randomised parameters' values appended to the observation "
     "(context), bounded by their distributions' supports; or a tuple of their names "
     "(default False)",
+    "perturb": "observation and action noise, motor response, delay, pushes: a dict with "
+    "keys obs_noise, action_noise, motor_k, delay, push (see envs.perturb; default None: off)",
 }
 """The env options besides the model's parameters (by name), with what they mean."""
 
@@ -140,6 +143,8 @@ class Plant:
     context: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     # int64 (k, 2): observation column, parameter column of each context feature
     p_follows: bool = False  # the task functions' `p` follows each copy's values
+    # the checked `perturb=` option (envs.perturb), or None: the env's runtime applies it
+    perturb: Any = None
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:
@@ -171,6 +176,7 @@ class Plant:
             rebuild = lambda k, v: build_plant(task, {**options, k: v}, max_input)  # noqa: E731
             plant.p_follows = warn_nominal(plant, rebuild)
         add_context(plant, get("observe_params"))
+        plant.perturb = Perturbations.parse(get("perturb"), plant)
         return plant
 
     @property

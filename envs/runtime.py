@@ -16,6 +16,11 @@ The task's own functions are compiled with numba here when numba can type them, 
 as plain Python otherwise (a warning says so once per function). When all of them compile
 and one thread steps the rows, the whole step is one compiled call (`envs.fused`), with the
 same results bit for bit: the per-row arrays are views of a few flat buffers for that.
+
+The env's own runtime (`perturbed=True`) applies the plant's perturbations (`envs.perturb`):
+before a step, the inputs applied and the pushes' generalised forces replace the commanded
+inputs (a variant of the fused step takes them); after it, the observation handed out gets
+its noise. Other runtimes of the plant (`env.simulator(n)`) step the nominal plant.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from numba import njit
 from dynamics.system import BLOCK, method_tableau
 
 from . import checks, fused, names
+from .perturb import Perturber
 from .plant import Plant
 from .randomize import record_rows, task_records
 from .task import Derived
@@ -221,7 +227,7 @@ class Runtime:
     """N rows of a task (see the module docstring). Public arrays are read-only views for
     wrappers; `reset_rows` and `step` are the only writers."""
 
-    def __init__(self, plant: Plant, n: int, *legacy):
+    def __init__(self, plant: Plant, n: int, *legacy, perturbed: bool = False):
         if legacy:  # the former (layout, n, control_period, substeps, integrator, threads)
             names = ("control_period", "substeps", "integrator", "num_threads")
             plant = dataclasses.replace(plant, **dict(zip(names, legacy)))
@@ -258,6 +264,8 @@ class Runtime:
         follows = self.per_row and getattr(layout, "p_follows", False)
         self.p_rows = record_rows(layout.p, n) if follows else None
         self._params: dict = {}  # `params` of a row (None: all), until `set_params`
+        # the plant's perturbations (envs.perturb), applied only by the env's own runtime
+        self.perturber = Perturber(plant.perturb, plant, n) if perturbed and plant.perturb else None
         self._views()
         self._compile()
         if self.per_row and len(layout.context):  # observed parameters: the env's values
@@ -331,14 +339,17 @@ class Runtime:
         if not all(hasattr(f, "py_func") for f in compiled_functions.values()):
             return
         module, _ = self.system.kernels()
-        rows = self.per_row  # each row's own parameters: the kernels that read them so
+        pushed = self._pushed
+        rows = self.per_row or pushed  # each row's own parameters: the kernels that read them so
         functions = {
             "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
             "_erk": module.erk_batch_rows if rows else module.erk_batch,
             "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
+            **({"_erk_w": module.erk_batch_w} if pushed else {}),
             **compiled_functions,
         }  # fmt: skip
         plan, self._fused_C, self._fused_K = self._plan()
+        plan["perturbed"], plan["pushed"] = self.perturber is not None, pushed
         types = dict(zip(("_Rows", "_Actions", "_Goal"), self._types))
         self._fused = fused.build(plan, functions, types)
 
@@ -418,6 +429,9 @@ class Runtime:
         module, self._p_model = self.system.kernels()
         # what the model's kernels take as parameters: the system's, or each row's own
         self._p_kernel = self.P if self.per_row else self._p_model
+        # pushes step through the integrator that adds forces, which reads rows' parameters
+        self._pushed = self.perturber is not None and self.perturber.spec.push is not None
+        self._p_step = self.perturber.P if self._pushed and not self.per_row else self._p_kernel
         energy = module.energy_batch_rows if self.per_row else module.energy_batch
         self._energy = _warm(energy, self.T, self.X, self._p_kernel, self._E)
         self._compile_fused(jitted)
@@ -427,7 +441,7 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_p_kernel", "_p_task"):  # fmt: skip
+                  "_E0", "_p_kernel", "_p_step", "_p_task"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -440,6 +454,7 @@ class Runtime:
         state.setdefault("p_rows", None)
         state.setdefault("drawn", None if state["P"] is None else np.ones(len(state["P"]), bool))
         state.setdefault("_params", {})
+        state.setdefault("perturber", None)
         self.__dict__.update(state)
         self._views()
         self._compile()
@@ -503,26 +518,44 @@ class Runtime:
         np.clip(obs, lay.obs_low, lay.obs_high, out=obs)
         self._obs64[rows] = obs
         self.O[rows] = obs
+        if self.perturber is not None:
+            index = np.arange(self.n)[rows]
+            self.perturber.clear(index)
+            self.perturber.observe(self._obs64, self.O, index)
 
     def step(self, actions: np.ndarray, horizon: int | None) -> bool:
         """Advance every row one control period under `actions` (N, n_a), finite; the
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
         lay = self.plant
+        perturbed = ()
+        if self.perturber is not None:  # the inputs applied and the pushes (envs.perturb)
+            if not np.isfinite(actions).all():
+                raise NonFiniteActions("actions contain NaN or inf")
+            perturbed = self.perturber.before_step(actions, self.T, self.X, self._p_step)
         if self._fused is not None:
             f = actions.flags
             step = self._fused_bound.get((actions.dtype, f.c_contiguous, f.writeable, f.aligned))
             if step is None:
                 step = self._bind_fused(actions)
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
-                        self._fused_K, self._p_kernel, self._p_task,
-                        -1 if horizon is None else horizon)  # fmt: skip
+                        self._fused_K, self._p_step, self._p_task,
+                        -1 if horizon is None else horizon, *perturbed)  # fmt: skip
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
+            if perturbed:
+                self.perturber.observe(self._obs64, self.O)
             return code > 0
         if not apply_actions(actions, lay.input_mid, lay.input_half, lay.actuated, self.A, self.U):
             raise NonFiniteActions("actions contain NaN or inf")
-        if self.per_row:
+        if perturbed:
+            self.U[:, lay.actuated] = perturbed[0]
+        if self._pushed:
+            self.system.step_pushed_unchecked(
+                self.T, self.X, self.U, self._p_step, perturbed[1], self.control_period,
+                self.substeps, self._X_next, self.integrator,
+            )  # fmt: skip
+        elif self.per_row:
             self.system.step_rows_unchecked(
                 self.T, self.X, self.U, self.P, self.control_period, self.substeps,
                 self._X_next, self.integrator, self.num_threads,
@@ -536,6 +569,8 @@ class Runtime:
                                  self.control_period, self.steps,
                                  -1 if horizon is None else horizon, self._steps_left)  # fmt: skip
         bad = self._evaluate(self._steps_left)
+        if perturbed:
+            self.perturber.observe(self._obs64, self.O)
         return bool(diverged) or bool(bad)
 
     def _bind_fused(self, actions: np.ndarray):
@@ -543,7 +578,9 @@ class Runtime:
         numba's cache on first use), bound as `bind` does."""
         f = actions.flags
         args = (actions, self._F, self._B, self.steps, self.O, self._fused_C, self._fused_K,
-                self._p_kernel, self._p_task, -1)  # fmt: skip
+                self._p_step, self._p_task, -1)  # fmt: skip
+        if self.perturber is not None:  # samples of the applied inputs and the forces
+            args += (self.perturber.applied, self.perturber.W)
         self._fused.compile(tuple(self._fused.typeof_pyval(a) for a in args))
         step = bind(self._fused, args)
         self._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step

@@ -103,7 +103,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
                 r.bit_generator.state = state
             raise
         self._rngs = rngs
-        begin(self._rt, rows, x, g, params)
+        begin(self._rt, rows, x, g, params, rngs)
         self._done[:] = False
         self._ready = True
         return self._rt.O.copy(), self._info(reset=True)
@@ -148,7 +148,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
     def _reset_rows(self, rows: np.ndarray) -> None:
         rows = rows.tolist()
         x, g, params = start(self._rt, self._rngs, None, rows, self.num_envs)
-        begin(self._rt, rows, x, g, params)
+        begin(self._rt, rows, x, g, params, self._rngs)
 
     def _info(self, reset: bool = False) -> dict[str, Any]:
         rt = self._rt
@@ -170,6 +170,8 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         if rt.per_row:  # randomised: the model parameters each copy steps with
             params = rt.params()
             info["params"] = {**params, **{"_" + k: every for k in params}}
+        if rt.perturber is not None and rt.perturber.spec.push is not None:
+            info["push"] = rt.perturber.force.copy()  # the push of the last step, N
         info.update({"_" + k: every for k in list(info)})
         return info
 

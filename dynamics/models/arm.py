@@ -20,6 +20,8 @@ def two_link_arm() -> ModelSpec:
     acts on link 1, so by virtual work, M1 d(theta1) + M2 (d(theta2) - d(theta1)),
     Q1 = M1 - M2 and Q2 = M2 (the book's Q1 = M1 holds only if M1 is the net torque on
     link 1; docs/errata.md).
+    Points for external forces (`ModelSpec.points`, components along N.x down and N.y):
+    link2, the mass centre D of link 2, and elbow, C.
     Parameters follow the book: l is AC, l1 the distance from A to the mass centre B of
     link 1, l2 from C to the mass centre D of link 2; Ibar1, Ibar2 central moments of
     inertia. Defaults: two uniform 1 kg, 1 m rods.
@@ -63,4 +65,8 @@ def two_link_arm() -> ModelSpec:
             g: Param(9.81, "m/s^2", "gravitational acceleration"),
         },
         description=two_link_arm.__doc__,
+        points={
+            "link2": sp.Matrix([vD.dot(N.x), vD.dot(N.y)]),
+            "elbow": sp.Matrix([C.pos_from(A).dt(N).dot(e) for e in (N.x, N.y)]),
+        },
     )

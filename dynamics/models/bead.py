@@ -49,7 +49,8 @@ def bead_on_driven_rod() -> ModelSpec:
     angle above the horizontal (counter-clockwise +). The rod is balanced about O (its
     mass centre at O) with moment of inertia J about O. Input tau: motor torque on the rod
     (ground on rod, counter-clockwise +), N*m. The rod reaches rod_length/2 either side of
-    O; leaving it is for the environment to judge.
+    O; leaving it is for the environment to judge. Point for external forces
+    (`ModelSpec.points`): bead (components horizontal and up).
     """
     r, phi = me.dynamicsymbols("r phi")
     m, g, J, L = sp.symbols("m g J rod_length", positive=True)
@@ -71,4 +72,5 @@ def bead_on_driven_rod() -> ModelSpec:
             g: Param(9.81, "m/s^2", "gravitational acceleration"),
         },
         description=bead_on_driven_rod.__doc__,
+        points={"bead": sp.Matrix([r * sp.cos(phi), r * sp.sin(phi)]).diff(t)},
     )

@@ -48,6 +48,8 @@ def whipple_bicycle() -> ModelSpec:
     heading axis from the ground (N*m; its work is T_phi dphi); T_delta, the steer torque
     of B on H about the steering axis (N*m); T_R, a drive torque of B on the rear wheel
     about its axle (N*m; positive rolls backwards). The paper's f = (T_phi, T_delta).
+    Point for external forces (`ModelSpec.points`): rear_frame, B's mass centre
+    (components along B's axes).
     """
     x, y, psi, phi, theta, delta, th_R, th_F = me.dynamicsymbols(
         "x y psi phi theta delta theta_R theta_F"
@@ -224,4 +226,6 @@ def whipple_bicycle() -> ModelSpec:
             I_Fyy: Param(0.28, "kg*m^2", "front wheel moment of inertia about its axle"),
         },
         description=whipple_bicycle.__doc__,
+        # B's mass centre (rider included), components along B's axes
+        points={"rear_frame": v_B},
     )

@@ -83,6 +83,8 @@ def eccentric_disk_slider() -> ModelSpec:
     no torque on the disk, so the slider cannot drive the disk through them, while the
     motor can. Outputs: slider_x, slider_v (m, m/s), rod_tension (N, pulling S towards P)
     and normal_force (N, of the surface on the particle; negative would mean it lifts off).
+    Points for external forces (`ModelSpec.points`, components along x and y): slider, S
+    (the surface takes a vertical force), and pin, P.
     """
     theta = me.dynamicsymbols("theta")
     I, M, m, R, l, g = sp.symbols("I M m R l g", positive=True)
@@ -129,4 +131,8 @@ def eccentric_disk_slider() -> ModelSpec:
             "l > R + |h| (else the rod stands vertical and the mechanism locks)": l - R - sp.Abs(h)
         },
         description=eccentric_disk_slider.__doc__,
+        points={
+            "slider": sp.Matrix([v, 0]),
+            "pin": sp.Matrix([R * sp.cos(theta), R * sp.sin(theta)]).diff(t),
+        },
     )

@@ -25,6 +25,7 @@ def rolling_disk() -> ModelSpec:
     Inputs: tau_drive, a torque on the disk about its axle k' (N*m), and tau_steer, a torque
     about the vertical j (N*m); their generalised forces follow from virtual work.
     Defaults: a uniform thin disk, I = m r^2 / 4 (diameter), J = m r^2 / 2 (axis).
+    Point for external forces (`ModelSpec.points`, components along i, j, k): centre.
     """
     x, z, theta, phi, psi = me.dynamicsymbols("x z theta phi psi")
     m, r, I, J, g = sp.symbols("m r I J g", positive=True)
@@ -73,4 +74,5 @@ def rolling_disk() -> ModelSpec:
             g: Param(9.81, "m/s^2", "gravitational acceleration"),
         },
         description=rolling_disk.__doc__,
+        points={"centre": v_centre.to_matrix(N)},
     )
