@@ -168,6 +168,17 @@ def add_option(parser, where: str, extra: str = "") -> None:
     )
 
 
+def tag(setting: dict | None) -> str:
+    """A suffix naming `setting` in a run directory's name ('' for none), e.g.
+    '_randomized-inertial0.25'."""
+    if not setting:
+        return ""
+    parts = [
+        f"{k}{v[0]:g}-{v[1]:g}" if isinstance(v, list) else f"{k}{v:g}" for k, v in setting.items()
+    ]
+    return "_randomized-" + "+".join(parts)
+
+
 def describe(setting: dict | None) -> str:
     """One phrase for reports: 'nominal parameters' or what is randomised."""
     if not setting:

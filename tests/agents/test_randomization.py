@@ -86,3 +86,31 @@ def test_the_command_line_refuses_a_bad_setting_before_writing(tmp_path, capsys)
     assert main([BEAD, "--randomize", "nope=0.1", "--run-dir", str(run)]) == 2
     assert "'nope' is not a parameter" in capsys.readouterr().err
     assert not (run / "config.yml").exists()
+
+
+@pytest.mark.slow  # trains, and runs every baseline
+def test_check_trains_a_randomised_run_in_a_directory_of_its_own(tmp_path):
+    from agents.check import run_check
+
+    tiny = tmp_path / "tiny.yml"
+    tiny.write_text(yaml.safe_dump({ARM: {"n_envs": 1, "n_steps": 64, "batch_size": 64}}))
+    rows = run_check(
+        [ARM], episodes=2, out=tmp_path, timesteps=128, progress=False, hyperparams=tiny,
+        randomize={"inertial": 0.25},
+    )  # fmt: skip
+    run = (
+        tmp_path / "train" / "Lagrange-TwoLinkArm-v1" / "ppo_seed0_128steps_randomized-inertial0.25"
+    )
+    config = yaml.safe_load((run / "config.yml").read_text())
+    assert config["hyperparams"]["randomize"] == {"inertial": 0.25}
+    assert rows[-1].note == "randomised: every mass and inertia over [0.75, 1.25] x nominal"
+
+
+def test_check_refuses_a_bad_setting(capsys):
+    from agents.check import main as check_main
+
+    with pytest.raises(SystemExit) as exc:
+        check_main([ARM, "--randomize", "inertial=2"])
+    assert (
+        exc.value.code == 2 and "--randomize: inertial to be a fraction" in capsys.readouterr().err
+    )
