@@ -114,3 +114,16 @@ def test_check_refuses_a_bad_setting(capsys):
     assert (
         exc.value.code == 2 and "--randomize: inertial to be a fraction" in capsys.readouterr().err
     )
+
+
+def test_evaluate_draws_each_episode_s_parameters(capsys):
+    from agents.evaluate import evaluate
+    from agents.evaluate import main as evaluate_main
+
+    nominal = evaluate(ARM, "lqr", 4, seed=3)
+    drawn = evaluate(ARM, "lqr", 4, seed=3, randomize={"m2": [1.5, 2.0]})
+    assert not np.array_equal(nominal.returns, drawn.returns)  # same starts, other plants
+    argv = [ARM, "--agent", "zero", "--episodes", "2", "--randomize", "inertial=0.25"]
+    assert evaluate_main(argv) == 0
+    out = capsys.readouterr().out
+    assert "(randomised: every mass and inertia over [0.75, 1.25] x nominal)" in out
