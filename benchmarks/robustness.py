@@ -58,6 +58,7 @@ import numpy as np  # noqa: E402
 import envs  # noqa: E402
 from agents.common import env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.report import wilson_interval  # noqa: E402
+from envs.checks import Unsupported  # noqa: E402
 
 AGENTS = ("lqr", "plan", "heuristic", "ppo", "ppo-randomized")
 PERTURBATIONS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
@@ -93,9 +94,11 @@ def perturb_available(env_id: str) -> str | None:
     return None
 
 
-def quantities(env_id: str, grid: int, wanted: list[str] | None) -> list[Quantity]:
+def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) -> list[Quantity]:
     """The quantities of `env_id` named in `wanted` (names, 'inertial' for every inertial
-    parameter, 'perturb' for every perturbation; None: all), each over its grid."""
+    parameter, 'perturb' for every perturbation; None: all), each over its grid: `grid`
+    points, the parameters' scales of the nominal over [0.75, 1.25] unless `scales` lists
+    them."""
     from agents.randomization import inertial_parameters
 
     env = lagrange_env(gym.make(env_id))
@@ -108,7 +111,7 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None) -> list[Quantit
             group = {"inertial": inertial + [ALL_INERTIAL], "perturb": PERTURBATIONS}.get(w, [w])
             chosen |= set(group)
         names = [n for n in names if n in chosen]
-    scales = np.linspace(0.75, 1.25, grid)
+    scales = np.linspace(0.75, 1.25, grid) if scales is None else sorted(scales)
     fractions = np.linspace(0.0, 1.0, grid)
     weight = sum(v for k, v in system.parameters.items() if system.units[k] == "kg")
     weight *= system.parameters.get("g", 9.81)
@@ -368,7 +371,7 @@ NOTE = (
 
 
 def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
-    qs = quantities(env_id, args.grid, args.quantities)
+    qs = quantities(env_id, args.grid, args.quantities, args.scales)
     skipped = []
     if any(q.kind == "perturb" for q in qs):
         why = perturb_available(env_id)
@@ -382,13 +385,17 @@ def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
     for q in qs:
         start = time.perf_counter()
         new = []
-        for agent, make in makers.items():
+        for agent, make in list(makers.items()):
             try:
                 new += run_quantity(env_id, q, {agent: make}, args.episodes, args.seed)
-            except Exception as exc:  # e.g. the env's Unsupported: LQR refused with the reason
-                if q is qs[0]:
-                    skipped.append(f"{agent}: {' '.join(str(exc).split())[:200]}")
-                    log(f"  {agent} refused: {skipped[-1]}")
+            except (ValueError, RuntimeError) as exc:  # LQR refused (Unsupported), a bad value
+                why = " ".join(str(exc).split())[:240]
+                if isinstance(exc, Unsupported):  # the same reason everywhere: once
+                    del makers[agent]
+                    skipped.append(f"{agent} refuses {env_id}: {why}")
+                else:
+                    skipped.append(f"{agent} on {q.name}: {why}")
+                log(f"  {skipped[-1]}")
         rows += new
         if "lqr" in makers and any(r["agent"] == "lqr" for r in new):
             drops[q.name] = describe_drop(q, drop_points(new, q))
@@ -414,6 +421,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "'inertial' or 'perturb' for each group (default: all)")  # fmt: skip
     p.add_argument("--episodes", type=int, default=100, help="seeded episodes per grid point")
     p.add_argument("--grid", type=int, default=5, help="points of the parameter/noise grids")
+    p.add_argument("--scales", type=_numbers,
+                   help="the parameters' grid as scales of the nominal, e.g. 0.25,0.5,1,2,4 "
+                   "(default: --grid points over [0.75, 1.25])")  # fmt: skip
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--models", default="runs/robustness/models",
                    help="trained PPO: DIR/ENV/nominal and DIR/ENV/randomized")  # fmt: skip
@@ -421,6 +431,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="runs/robustness", help="results.json and results.md")
     p.add_argument("--figures", help="directory of the figures (default: --out)")
     return p
+
+
+def _numbers(text: str) -> list[float]:
+    values = [float(t) for t in _names(text)]
+    if not values or min(values) <= 0:
+        raise argparse.ArgumentTypeError("positive scales, comma-separated")
+    return values
 
 
 def _names(text: str) -> list[str]:
