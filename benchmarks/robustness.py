@@ -307,11 +307,37 @@ def markdown(results: dict) -> str:
                     cells.append("" if r is None else
                                  f"{r['rate']:.0%} [{r['low']:.0%}, {r['high']:.0%}]")  # fmt: skip
                 lines.append(f"| {q['name']} | {x:g} | " + " | ".join(cells) + " |")
+        lines += ends_table(env)
         if env["lqr_drop"]:
             lines.append("\nLQR below 50 % (nearest grid point to the nominal, per side):\n")
             lines += [f"- {name}: {text}" for name, text in env["lqr_drop"].items()]
         lines.append("")
     return "\n".join(lines)
+
+
+def ends_table(env: dict) -> list[str]:
+    """Markdown lines: PPO trained with randomisation against nominally trained PPO at the
+    ends of each parameter grid, and whether their 95 % intervals separate."""
+    if not {"ppo", "ppo-randomized"} <= set(env["agents"]):
+        return []
+    find = {(r["agent"], r["quantity"], r["x"]): r for r in env["rows"]}
+    out = [
+        "\nPPO trained with randomisation against nominally trained PPO at the grid's ends:\n",
+        "| quantity | x | ppo-randomized | ppo | intervals |",
+        "|---|---|---|---|---|",
+    ]
+    for q in env["quantities"]:
+        if q["kind"] != "params":
+            continue
+        for x in (min(q["xs"]), max(q["xs"])):
+            a, b = find.get(("ppo-randomized", q["name"], x)), find.get(("ppo", q["name"], x))
+            if a is None or b is None:
+                continue
+            verdict = ("randomised above" if a["low"] > b["high"] else
+                       "nominal above" if b["low"] > a["high"] else "overlap")  # fmt: skip
+            cell = lambda r: f"{r['rate']:.0%} [{r['low']:.0%}, {r['high']:.0%}]"  # noqa: E731
+            out.append(f"| {q['name']} | {x:g} | {cell(a)} | {cell(b)} | {verdict} |")
+    return out
 
 
 def plot(env_id: str, qs: list[Quantity], rows: list[dict], agents: list[str], path: Path):
