@@ -264,27 +264,36 @@ def _vec(env_id: str, n: int, **options):
 
 
 # ---- results -----------------------------------------------------------------------------
-def drop_points(rows: list[dict], q: Quantity, agent: str = "lqr") -> dict[str, float | None]:
-    """Per side of the nominal value ('below', 'above'): the grid point nearest the nominal
-    at which `agent`'s success falls below THRESHOLD, None where it never does."""
+def drop_points(rows: list[dict], q: Quantity, agent: str = "lqr") -> dict:
+    """Where `agent`'s success falls below THRESHOLD: {'nominal': its rate at the nominal
+    value (None if not on the grid), and per side of it ('below', 'above'): (the farthest
+    point reached before it falls, the nearest point where it is below; None where it
+    never is)}, walking out from the nominal value."""
     mine = {r["x"]: r["rate"] for r in rows if r["agent"] == agent and r["quantity"] == q.name}
-    out = {}
+    out: dict = {"nominal": mine.get(q.nominal)}
     for side, keep in (("below", lambda x: x < q.nominal), ("above", lambda x: x > q.nominal)):
         xs = sorted((x for x in mine if keep(x)), key=lambda x: abs(x - q.nominal))
         if xs:
-            out[side] = next((x for x in xs if mine[x] < THRESHOLD), None)
+            drop = next((x for x in xs if mine[x] < THRESHOLD), None)
+            held = [x for x in xs[: xs.index(drop) if drop is not None else len(xs)]]
+            out[side] = (held[-1] if held else None, drop)
     return out
 
 
 def describe_drop(q: Quantity, drops: dict) -> str:
+    """One phrase: where the success falls below THRESHOLD on each side of the nominal."""
+    if drops["nominal"] is not None and drops["nominal"] < THRESHOLD:
+        return f"below {THRESHOLD:.0%} at the nominal value already ({drops['nominal']:.0%})"
     parts = []
-    for side, x in drops.items():
-        end = min if side == "below" else max
-        xs = [p[0] for p in q.points]
-        edge = end(xs)
-        parts.append(f"{'<' if side == 'below' else '>'}{x:g}" if x is not None
-                     else f"holds to {edge:g}")  # fmt: skip
-    return ", ".join(parts)
+    for side in ("below", "above"):
+        if side not in drops:
+            continue
+        held, drop = drops[side]
+        if drop is None:
+            parts.append(f"holds to {held:g}")
+        else:
+            parts.append(f"falls below at {drop:g}" + (f" (holds at {held:g})" if held else ""))
+    return "; ".join(parts)
 
 
 def markdown(results: dict) -> str:

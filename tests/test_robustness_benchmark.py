@@ -45,8 +45,15 @@ def test_where_lqr_drops_below_half_is_the_grid_point_nearest_the_nominal(bench)
     rates = {0.5: 0.1, 0.75: 0.4, 1: 1.0, 1.25: 0.9, 1.5: 0.6}
     rows = [dict(agent="lqr", quantity="m2", x=x, rate=r) for x, r in rates.items()]
     drops = bench.drop_points(rows, q)
-    assert drops == {"below": 0.75, "above": None}
-    assert bench.describe_drop(q, drops) == "<0.75, holds to 1.5"
+    assert drops == {"nominal": 1.0, "below": (None, 0.75), "above": (1.5, None)}
+    assert bench.describe_drop(q, drops) == "falls below at 0.75; holds to 1.5"
+    rows[0]["rate"], rows[1]["rate"] = 0.2, 0.6  # falls at 0.5, below 0.75 where it holds
+    drops = bench.drop_points(rows, q)
+    assert bench.describe_drop(q, drops) == "falls below at 0.5 (holds at 0.75); holds to 1.5"
+    rows[2]["rate"] = 0.0  # already below at the nominal value
+    assert bench.describe_drop(q, bench.drop_points(rows, q)) == (
+        "below 50% at the nominal value already (0%)"
+    )
 
 
 def test_each_copy_s_first_episode_is_counted_once(bench):
