@@ -39,14 +39,12 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import io
 import json
 import os
 import platform
 import sys
 import time
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -58,27 +56,15 @@ import numpy as np  # noqa: E402
 import envs  # noqa: E402
 from agents.common import env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.report import wilson_interval  # noqa: E402
+from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 
 AGENTS = ("lqr", "plan", "heuristic", "ppo", "ppo-randomized")
 PERTURBATIONS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 RANDOMIZED = {"inertial": 0.25}
 """How `ppo-randomized` is trained (agents.randomization)."""
-THRESHOLD = 0.5
 ALL_INERTIAL = "inertial"
 """The quantity that scales every inertial parameter together (the same factor)."""
-
-
-@dataclass(frozen=True)
-class Quantity:
-    """One quantity varied over a grid: `points` are (x, setting), x the value plotted and
-    the setting a reset's params ({name: value}) or an env's perturb option."""
-
-    name: str
-    kind: str  # "params" or "perturb"
-    label: str
-    nominal: float
-    points: tuple[tuple[float, dict], ...]
 
 
 def perturb_available(env_id: str) -> str | None:
@@ -263,148 +249,7 @@ def _vec(env_id: str, n: int, **options):
         return gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **options)
 
 
-# ---- results -----------------------------------------------------------------------------
-def drop_points(rows: list[dict], q: Quantity, agent: str = "lqr") -> dict:
-    """Where `agent`'s success falls below THRESHOLD: {'nominal': its rate at the nominal
-    value (None if not on the grid), and per side of it ('below', 'above'): (the farthest
-    point reached before it falls, the nearest point where it is below; None where it
-    never is)}, walking out from the nominal value."""
-    mine = {r["x"]: r["rate"] for r in rows if r["agent"] == agent and r["quantity"] == q.name}
-    out: dict = {"nominal": mine.get(q.nominal)}
-    for side, keep in (("below", lambda x: x < q.nominal), ("above", lambda x: x > q.nominal)):
-        xs = sorted((x for x in mine if keep(x)), key=lambda x: abs(x - q.nominal))
-        if xs:
-            drop = next((x for x in xs if mine[x] < THRESHOLD), None)
-            held = [x for x in xs[: xs.index(drop) if drop is not None else len(xs)]]
-            out[side] = (held[-1] if held else None, drop)
-    return out
-
-
-def describe_drop(q: Quantity, drops: dict) -> str:
-    """One phrase: where the success falls below THRESHOLD on each side of the nominal."""
-    if drops["nominal"] is not None and drops["nominal"] < THRESHOLD:
-        return f"below {THRESHOLD:.0%} at the nominal value already ({drops['nominal']:.0%})"
-    parts = []
-    for side in ("below", "above"):
-        if side not in drops:
-            continue
-        held, drop = drops[side]
-        if drop is None:
-            parts.append(f"holds to {held:g}")
-        else:
-            parts.append(f"falls below at {drop:g}" + (f" (holds at {held:g})" if held else ""))
-    return "; ".join(parts)
-
-
-def markdown(results: dict) -> str:
-    lines = [
-        f"# Robustness\n\n{results['note']}\n\nCommand: `{results['command']}`; "
-        f"{results['machine']}; load average {results['load_start']} at the start, "
-        f"{results['load_end']} at the end; {results['wall_s']:.0f} s.\n"
-    ]
-    for env_id, env in results["envs"].items():
-        lines.append(f"## {env_id}\n")
-        lines += [f"- {s}" for s in env["skipped"]]
-        lines.append("\n| quantity | x | " + " | ".join(env["agents"]) + " |")
-        lines.append("|---|---|" + "---|" * len(env["agents"]))
-        for q in env["quantities"]:
-            for x in q["xs"]:
-                cells = []
-                for agent in env["agents"]:
-                    r = next((r for r in env["rows"] if (r["agent"], r["quantity"], r["x"])
-                              == (agent, q["name"], x)), None)  # fmt: skip
-                    cells.append("" if r is None else
-                                 f"{r['rate']:.0%} [{r['low']:.0%}, {r['high']:.0%}]")  # fmt: skip
-                lines.append(f"| {q['name']} | {x:g} | " + " | ".join(cells) + " |")
-        lines += ends_table(env)
-        if env["lqr_drop"]:
-            lines.append("\nLQR below 50 % (nearest grid point to the nominal, per side):\n")
-            lines += [f"- {name}: {text}" for name, text in env["lqr_drop"].items()]
-        lines.append("")
-    return "\n".join(lines)
-
-
-def ends_table(env: dict) -> list[str]:
-    """Markdown lines: PPO trained with randomisation against nominally trained PPO at the
-    ends of each parameter grid, and whether their 95 % intervals separate."""
-    if not {"ppo", "ppo-randomized"} <= set(env["agents"]):
-        return []
-    find = {(r["agent"], r["quantity"], r["x"]): r for r in env["rows"]}
-    out = [
-        "\nPPO trained with randomisation against nominally trained PPO at the grid's ends:\n",
-        "| quantity | x | ppo-randomized | ppo | intervals |",
-        "|---|---|---|---|---|",
-    ]
-    for q in env["quantities"]:
-        if q["kind"] != "params":
-            continue
-        for x in (min(q["xs"]), max(q["xs"])):
-            a, b = find.get(("ppo-randomized", q["name"], x)), find.get(("ppo", q["name"], x))
-            if a is None or b is None:
-                continue
-            verdict = ("randomised above" if a["low"] > b["high"] else
-                       "nominal above" if b["low"] > a["high"] else "overlap")  # fmt: skip
-            cell = lambda r: f"{r['rate']:.0%} [{r['low']:.0%}, {r['high']:.0%}]"  # noqa: E731
-            out.append(f"| {q['name']} | {x:g} | {cell(a)} | {cell(b)} | {verdict} |")
-    return out
-
-
-def plot(env_id: str, qs: list[Quantity], rows: list[dict], agents: list[str], path: Path):
-    """Success against deviation, one panel per quantity, one line per agent (95 % band)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from agents.common import write_atomic
-
-    cols = min(4, len(qs))
-    nrows = -(-len(qs) // cols)
-    width, height = max(6.4, 3.2 * cols), 2.6 * nrows + 0.8
-    fig, axes = plt.subplots(nrows, cols, figsize=(width, height), squeeze=False)
-    for ax, q in zip(axes.flat, qs):
-        for agent in agents:
-            mine = sorted((r for r in rows if r["agent"] == agent and r["quantity"] == q.name),
-                          key=lambda r: r["x"])  # fmt: skip
-            if not mine:
-                continue
-            x = [r["x"] for r in mine]
-            (line,) = ax.plot(x, [r["rate"] for r in mine], marker="o", ms=3, label=agent)
-            ax.fill_between(x, [r["low"] for r in mine], [r["high"] for r in mine],
-                            color=line.get_color(), alpha=0.15, lw=0)  # fmt: skip
-        ax.axvline(q.nominal, color="0.6", lw=0.8, ls=":")
-        ax.axhline(THRESHOLD, color="0.8", lw=0.8)
-        ax.set_xlabel(q.label)
-        ax.set_ylim(-0.03, 1.03)
-    for ax in axes.flat[len(qs) :]:
-        ax.axis("off")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("success")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
-    top = 1 - 0.6 / height
-    fig.suptitle(f"{env_id}: success as one quantity deviates (controllers keep the nominal "
-                 "model)", fontsize=10, y=0.995)  # fmt: skip
-    fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, top), ncol=len(labels),
-               frameon=False, fontsize=9)  # fmt: skip
-    fig.tight_layout(rect=(0, 0, 1, top))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, buf.getvalue())
-
-
 # ---- the run -----------------------------------------------------------------------------
-NOTE = (
-    "Success rate (the task's criterion at the last step) with Wilson 95 % intervals when one "
-    "quantity at a time moves away from the nominal plant; every grid point runs the same "
-    "seeded episodes. The controllers keep the nominal model: LQR, the plan + TVLQR and the "
-    "heuristics are designed on the nominal parameters while the plant steps the deviated "
-    "ones. ppo trained on the nominal plant; ppo-randomized with every inertial parameter "
-    "(kg, kg*m^2) drawn over [0.75, 1.25] x nominal at every reset."
-)
-
-
 def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
     qs = quantities(env_id, args.grid, args.quantities, args.scales)
     skipped = []
@@ -416,7 +261,7 @@ def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
             log(f"  {skipped[-1]}")
             qs = [q for q in qs if q.kind != "perturb"]
     makers = agents_of(env_id, args.agents, Path(args.models), not args.no_train, log)
-    rows, drops = [], {}
+    rows = []
     for q in qs:
         start = time.perf_counter()
         new = []
@@ -432,12 +277,10 @@ def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
                     skipped.append(f"{agent} on {q.name}: {why}")
                 log(f"  {skipped[-1]}")
         rows += new
-        if "lqr" in makers and any(r["agent"] == "lqr" for r in new):
-            drops[q.name] = describe_drop(q, drop_points(new, q))
         log(f"  {q.name}: {len(q.points)} points in {time.perf_counter() - start:.0f} s")
     agents = [a for a in makers if any(r["agent"] == a for r in rows)]
     result = dict(
-        agents=agents, skipped=skipped, rows=rows, lqr_drop=drops,
+        agents=agents, skipped=skipped, rows=rows,
         quantities=[dict(name=q.name, kind=q.kind, label=q.label, nominal=q.nominal,
                          xs=[x for x, _ in q.points]) for q in qs],
     )  # fmt: skip
@@ -465,6 +308,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-train", action="store_true", help="skip PPO models not in --models")
     p.add_argument("--out", default="runs/robustness", help="results.json and results.md")
     p.add_argument("--figures", help="directory of the figures (default: --out)")
+    p.add_argument("--render", nargs="+", metavar="JSON",
+                   help="run nothing: merge these results.json files (later ones win where "
+                   "they overlap) and write the table and figures from them")  # fmt: skip
     return p
 
 
@@ -490,31 +336,26 @@ def main(argv: list[str] | None = None) -> int:
     log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
     load_start = ", ".join(f"{v:.1f}" for v in os.getloadavg())
     start = time.perf_counter()
+    if args.render:
+        render(merge([json.loads(Path(p).read_text()) for p in args.render]), out, figures)
+        return 0
     results = {"envs": {}}
     for env_id in env_ids:
         log(f"{env_id}")
-        env_result, qs = bench_env(env_id, args, log)
-        results["envs"][env_id] = env_result
-        if env_result["rows"]:
-            plot(env_id, qs, env_result["rows"], env_result["agents"],
-                 figures / f"{env_slug(env_id)}.png")  # fmt: skip
-    results.update(
-        note=NOTE,
-        command="python benchmarks/robustness.py "
-        + " ".join(sys.argv[1:] if argv is None else argv),
-        date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        machine=f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
-        load_start=load_start,
-        load_end=", ".join(f"{v:.1f}" for v in os.getloadavg()),
-        wall_s=time.perf_counter() - start,
-        models={e: _model_settings(Path(args.models), e) for e in env_ids},
-    )
-    from agents.common import write_atomic
-
-    write_atomic(out / "results.json", json.dumps(results, indent=1) + "\n")
-    text = markdown(results)
-    write_atomic(out / "results.md", text)
-    print(text)
+        results["envs"][env_id] = bench_env(env_id, args, log)[0]
+    results["runs"] = [
+        dict(
+            command="python benchmarks/robustness.py "
+            + " ".join(sys.argv[1:] if argv is None else argv),
+            date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            machine=f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+            load_start=load_start,
+            load_end=", ".join(f"{v:.1f}" for v in os.getloadavg()),
+            wall_s=round(time.perf_counter() - start, 1),
+            models={e: _model_settings(Path(args.models), e) for e in env_ids},
+        )
+    ]
+    render(results, out, figures)
     return 0
 
 

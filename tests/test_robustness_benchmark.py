@@ -41,19 +41,19 @@ def test_the_grids_span_the_issue_s_ranges(bench):
 
 
 def test_where_lqr_drops_below_half_is_the_grid_point_nearest_the_nominal(bench):
+    from benchmarks.robustness_report import describe_drop, drop_points
+
     q = bench.Quantity("m2", "params", "", 1.0, tuple((x, {}) for x in (0.5, 0.75, 1, 1.25, 1.5)))
     rates = {0.5: 0.1, 0.75: 0.4, 1: 1.0, 1.25: 0.9, 1.5: 0.6}
     rows = [dict(agent="lqr", quantity="m2", x=x, rate=r) for x, r in rates.items()]
-    drops = bench.drop_points(rows, q)
+    drops = drop_points(rows, q)
     assert drops == {"nominal": 1.0, "below": (None, 0.75), "above": (1.5, None)}
-    assert bench.describe_drop(q, drops) == "falls below at 0.75; holds to 1.5"
+    assert describe_drop(q, drops) == "falls below at 0.75; holds to 1.5"
     rows[0]["rate"], rows[1]["rate"] = 0.2, 0.6  # falls at 0.5, below 0.75 where it holds
-    drops = bench.drop_points(rows, q)
-    assert bench.describe_drop(q, drops) == "falls below at 0.5 (holds at 0.75); holds to 1.5"
+    drops = drop_points(rows, q)
+    assert describe_drop(q, drops) == "falls below at 0.5 (holds at 0.75); holds to 1.5"
     rows[2]["rate"] = 0.0  # already below at the nominal value
-    assert bench.describe_drop(q, bench.drop_points(rows, q)) == (
-        "below 50% at the nominal value already (0%)"
-    )
+    assert describe_drop(q, drop_points(rows, q)) == ("below 50% at the nominal value already (0%)")
 
 
 def test_each_copy_s_first_episode_is_counted_once(bench):
@@ -81,16 +81,16 @@ def test_the_plan_tracker_follows_its_clock_on_a_plant_that_is_not_its_model(ben
 
 def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
     argv = ["--envs", ARM, "--agents", "lqr,ppo", "--quantities", "m2,delay", "--episodes",
-            "3", "--grid", "2", "--no-train", "--models", str(tmp_path / "none"),
+            "3", "--grid", "3", "--no-train", "--models", str(tmp_path / "none"),
             "--out", str(tmp_path)]  # fmt: skip
     assert bench.main(argv) == 0
     results = json.loads((tmp_path / "results.json").read_text())
     env = results["envs"][ARM]
     assert env["agents"] == ["lqr"]  # no PPO model there, and --no-train
     rows = [r for r in env["rows"] if r["quantity"] == "m2"]
-    assert [(r["x"], r["n"]) for r in rows] == [(0.75, 3), (1.25, 3)]
+    assert [(r["x"], r["n"]) for r in rows] == [(0.75, 3), (1.0, 3), (1.25, 3)]
     assert all(r["low"] <= r["rate"] <= r["high"] for r in rows)
-    assert "m2" in env["lqr_drop"]
+    assert set(env["drops"]["lqr"]) == {"m2"}
     from envs.plant import ENV_OPTIONS
 
     if "perturb" not in ENV_OPTIONS:  # the grids of perturbations wait for the option
@@ -98,3 +98,18 @@ def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
     text = (tmp_path / "results.md").read_text()
     assert "controllers keep the nominal model" in text and "| m2 | 0.75 |" in text
     assert (tmp_path / "Lagrange-TwoLinkArm-v1.png").stat().st_size > 0
+    assert (tmp_path / "model-based.png").stat().st_size > 0
+    # two runs merged: the second run's agent joins the first's rows
+    first = tmp_path / "first.json"
+    (tmp_path / "results.json").rename(first)
+    argv[argv.index("lqr,ppo")] = "heuristic"
+    argv[argv.index("m2,delay")] = "m2"
+    assert bench.main(argv) == 0
+    merged = tmp_path / "merged"
+    assert (
+        bench.main(["--render", str(first), str(tmp_path / "results.json"), "--out", str(merged)])
+        == 0
+    )
+    env = json.loads((merged / "results.json").read_text())["envs"][ARM]
+    assert env["agents"] == ["lqr", "heuristic"] and len(env["rows"]) == 6
+    assert len(json.loads((merged / "results.json").read_text())["runs"]) == 2
