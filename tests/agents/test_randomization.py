@@ -66,7 +66,8 @@ def test_the_setting_is_saved_and_a_resume_keeps_it(tmp_path):
     config = yaml.safe_load((tmp_path / "config.yml").read_text())
     assert config["hyperparams"]["randomize"] == {"m": 0.2}
     assert config["env_options"]["randomize"]["m"] == pytest.approx([0.08, 0.12])
-    train(BEAD, timesteps=1024, run_dir=tmp_path, resume=True, **SMALL)  # not given again
+    # resumed (finished: nothing more to learn) without the setting: the run's is kept
+    train(BEAD, timesteps=512, run_dir=tmp_path, resume=True, **SMALL)
     config = yaml.safe_load((tmp_path / "config.yml").read_text())
     assert config["hyperparams"]["randomize"] == {"m": 0.2}
     assert config["env_options"]["randomize"]["m"] == pytest.approx([0.08, 0.12])
