@@ -226,7 +226,9 @@ def run_quantity(env_id, q: Quantity, makers: dict, episodes: int, seed: int) ->
         options = {"params": params}
         seeds = seeds * len(q.points)
     else:
-        venvs = [(x, _vec(env_id, episodes, perturb=s)) for x, s in q.points]
+        # the nominal point is the env without the option (bit for bit the nominal plant)
+        venvs = [(x, _vec(env_id, episodes, **({"perturb": s} if x != q.nominal else {})))
+                 for x, s in q.points]  # fmt: skip
         options = None
     for agent, make in makers.items():
         won = []

@@ -183,8 +183,10 @@ def model_based_agent(env: dict) -> str | None:
     """The env's model-based controller for the summary figure: the first of LQR, plan and
     heuristic that succeeds at least THRESHOLD at the nominal plant (LQR alone cannot swing
     the acrobot up from hanging; the bicycle's LQR is refused)."""
+    params = {q["name"] for q in env["quantities"] if q["kind"] == "params"}
     for agent in MODEL_BASED:
-        nominal = [r for r in env["rows"] if r["agent"] == agent and r["x"] == 1.0]
+        nominal = [r for r in env["rows"]
+                   if r["agent"] == agent and r["quantity"] in params and r["x"] == 1.0]  # fmt: skip
         if nominal and min(r["rate"] for r in nominal) >= THRESHOLD:
             return agent
     return None

@@ -113,3 +113,24 @@ def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
     env = json.loads((merged / "results.json").read_text())["envs"][ARM]
     assert env["agents"] == ["lqr", "heuristic"] and len(env["rows"]) == 6
     assert len(json.loads((merged / "results.json").read_text())["runs"]) == 2
+
+
+def test_each_perturbation_point_makes_its_env_with_the_agreed_option(bench, tmp_path, monkeypatch):
+    """The grids of perturbations, run against a stand-in for the env option perturb= (the
+    nominal point is made without it): one env per point, with the agreed keys."""
+    made = []
+    plain = bench._vec
+
+    def vec(env_id, n, **options):
+        made.append(options.pop("perturb", None))
+        return plain(env_id, n, **options)
+
+    monkeypatch.setattr(bench, "_vec", vec)
+    monkeypatch.setattr(bench, "perturb_available", lambda env_id: None)
+    argv = ["--envs", ARM, "--agents", "lqr", "--quantities", "delay,push", "--episodes", "2",
+            "--grid", "2", "--no-train", "--out", str(tmp_path)]  # fmt: skip
+    assert bench.main(argv) == 0
+    assert made[:3] == [None, {"delay": 1}, {"delay": 2}]
+    assert made[3] is None and made[4] == {"push": {"force": pytest.approx(0.5 * 2 * 9.81)}}
+    rows = json.loads((tmp_path / "results.json").read_text())["envs"][ARM]["rows"]
+    assert [r["x"] for r in rows] == [0.0, 1.0, 2.0, 0.0, 0.5]
