@@ -185,8 +185,8 @@ def model_based_agent(env: dict) -> str | None:
     the acrobot up from hanging; the bicycle's LQR is refused)."""
     params = {q["name"] for q in env["quantities"] if q["kind"] == "params"}
     for agent in MODEL_BASED:
-        nominal = [r for r in env["rows"]
-                   if r["agent"] == agent and r["quantity"] in params and r["x"] == 1.0]  # fmt: skip
+        mine = [r for r in env["rows"] if r["agent"] == agent and r["quantity"] in params]
+        nominal = [r for r in mine if r["x"] == 1.0]
         if nominal and min(r["rate"] for r in nominal) >= THRESHOLD:
             return agent
     return None
