@@ -153,13 +153,23 @@ def agents_of(env_id: str, wanted: list[str], models: Path, train: bool, log) ->
             run = trained(env_id, name, models, train, log)
             if run is None:
                 continue
-            loaded = SB3Policy.load(run)
-            out[name] = lambda venv, p=loaded: p
+            out[name] = _trained_maker(SB3Policy.load(run))
         elif name == "plan":  # one tracker for every venv: it follows episodes by its clock
             out[name] = _plan_maker()
         else:
             out[name] = lambda venv, n=name: make_agent(n, venv)
     return out
+
+
+def _trained_maker(policy):
+    """venv -> the trained policy, with its run's LQR hand-over (agents.handover) built for
+    that venv where it was trained with one (as agents.evaluate acts)."""
+    if policy.handover is None:
+        return lambda venv: policy
+    from agents.handover import HandOverPolicy, handover_options
+
+    h = handover_options(policy.handover)
+    return lambda venv: HandOverPolicy(policy, venv, h["level"], h["verify"], h["verify_level"])
 
 
 def _plan_maker():

@@ -134,3 +134,19 @@ def test_each_perturbation_point_makes_its_env_with_the_agreed_option(bench, tmp
     assert made[3] is None and made[4] == {"push": {"force": pytest.approx(0.5 * 2 * 9.81)}}
     rows = json.loads((tmp_path / "results.json").read_text())["envs"][ARM]["rows"]
     assert [r["x"] for r in rows] == [0.0, 1.0, 2.0, 0.0, 0.5]
+
+
+@pytest.mark.slow  # designs the acrobot's LQR and its capture set
+def test_a_policy_trained_with_a_hand_over_acts_with_it(bench):
+    """As agents.evaluate acts: the acrobot's PPO hands over to LQR (on the nominal model)."""
+    from agents.common import task_of
+    from agents.handover import HandOverPolicy
+
+    class Trained:
+        handover = task_of(ACROBOT).hyperparams["ppo"]["handover"]
+
+    plain = Trained()
+    plain.handover = None
+    venv = bench._vec(ACROBOT, 2, randomize={})
+    assert isinstance(bench._trained_maker(Trained())(venv), HandOverPolicy)
+    assert bench._trained_maker(plain)(venv) is plain
