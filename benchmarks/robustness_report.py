@@ -153,6 +153,9 @@ def plot(env_id: str, qs: list[Quantity], rows: list[dict], agents: list[str], p
                             color=line.get_color(), alpha=0.15, lw=0)  # fmt: skip
         ax.axvline(q.nominal, color="0.6", lw=0.8, ls=":")
         ax.axhline(THRESHOLD, color="0.8", lw=0.8)
+        xs = [x for x, _ in q.points]
+        if q.kind == "params" and max(xs) / min(xs) > 4:
+            ax.set_xscale("log")
         ax.set_xlabel(q.label)
         ax.set_ylim(-0.03, 1.03)
     for ax in axes.flat[len(qs) :]:
