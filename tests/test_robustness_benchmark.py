@@ -24,7 +24,7 @@ def bench():
     return module
 
 
-def test_the_grids_span_the_issue_s_ranges(bench):
+def test_the_grids_span_the_robustness_criteria_s_ranges(bench):
     qs = {q.name: q for q in bench.quantities(ARM, 5, None)}
     assert {"m1", "m2", "Ibar1", "Ibar2", "inertial", "motor_k", "delay", "push"} <= set(qs)
     assert "l1" not in qs and "g" not in qs  # lengths and gravity are not inertial
