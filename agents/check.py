@@ -29,7 +29,7 @@ from pathlib import Path
 
 from envs.checks import Unsupported
 
-from . import hparams
+from . import hparams, randomization
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -72,7 +72,7 @@ def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
     return stats, time.perf_counter() - start, warm
 
 
-def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams):
+def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None):
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
     result and the run's `Training` record, whose time is summed over resumed segments."""
     found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
@@ -88,6 +88,7 @@ def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparam
             overwrite=fresh,
             progress=progress,
             hyperparams=hyperparams,
+            randomize=randomize,
         )
     except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
         record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
@@ -122,9 +123,12 @@ def check_env(
     log=print,
     hyperparams: str | Path | None = None,
     report: Path | None = None,
+    randomize: dict | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
-    named in the rows relative to `report`, the report's directory; default `out`)."""
+    named in the rows relative to `report`, the report's directory; default `out`). The
+    agent trains with `randomize` (agents.randomization) if given; every agent is scored
+    on the nominal env."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
@@ -141,15 +145,16 @@ def check_env(
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
     budget = budget_of(env_id, algo, timesteps, hyperparams)
-    run_dir = run_dir_of(out, env_id, algo, seed, budget)
+    run_dir = run_dir_of(out, env_id, algo, seed, budget, randomization.tag(randomize))
     log(f"  training {algo.upper()} for {budget:,} steps in {run_dir} ...")
     result, training = train_timed(
-        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize
     )
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
     training = replace(training, run_dir=link)
     stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
-    rows.append(Row(env_id, algo, stats, eval_s, "", training, warm_s))
+    note = randomization.describe(randomize) if randomize else ""
+    rows.append(Row(env_id, algo, stats, eval_s, note, training, warm_s))
     log(
         f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
         f"{training.train_s:.0f} s training)"
@@ -164,14 +169,17 @@ def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int
     return int(hparams.load(algo, env_id, hyperparams)["n_timesteps"])
 
 
-def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams) -> None:
+def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize=None) -> None:
     """Before any work: refuse (UserError) a run on disk that the job would resume with
     other settings than asked for (see `check_earlier_run`)."""
     for env_id in env_ids:
         name = algo or hparams.check_algo(env_id)
         budget = budget_of(env_id, name, timesteps, hyperparams)
         hp = load_hyperparams(name, env_id, hyperparams)
-        check_earlier_run(run_dir_of(out, env_id, name, seed, budget), budget, hp)
+        if randomize is not None:
+            hp["randomize"] = randomize
+        run_dir = run_dir_of(out, env_id, name, seed, budget, randomization.tag(randomize))
+        check_earlier_run(run_dir, budget, hp)
 
 
 def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:
@@ -229,10 +237,11 @@ def run_check(
     fresh: bool = False,
     progress: bool = True,
     hyperparams: str | Path | None = None,
+    randomize: dict | None = None,
 ) -> list[Row]:
     """Check every environment (default: all of `envs.ENV_IDS`); write the report to
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
-    the task's `algo`)."""
+    the task's `algo`). randomize: train with randomised parameters (agents.randomization)."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -241,7 +250,7 @@ def run_check(
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given])
     if not fresh:
-        check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams)
+        check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     print(
         f"The report goes to {report}/ (trained runs: {out / 'train'}/). In the lines below, "
@@ -256,7 +265,7 @@ def run_check(
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
-            report,
+            report, randomize,
         )  # fmt: skip
     total = time.perf_counter() - start
     write_atomic(report / "results.md", report_text(rows, episodes, seed, total))
@@ -319,6 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
         "budget starts a fresh run and keeps the earlier one, and a run of the same budget "
         "with other hyperparameters is refused with a message",
     )
+    randomization.add_option(
+        parser, "the training envs", "; the run trains in a directory of its own, and every "
+        "agent is scored on the nominal env",
+    )  # fmt: skip
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
     return parser
 
@@ -330,6 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
+        randomize = randomization.parse_option(args.randomize)
         if args.hyperparams is not None:
             for env_id in env_ids or register_envs():
                 hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
@@ -346,6 +360,7 @@ def main(argv: list[str] | None = None) -> int:
             args.fresh,
             not args.no_progress,
             args.hyperparams,
+            randomize,
         )
     except UserError as exc:
         fail(parser, exc)

@@ -88,13 +88,20 @@ def evaluate(
     seed: int = 0,
     video_dir: str | Path | None = None,
     deterministic: bool = True,
+    randomize: dict | None = None,
 ) -> EvalStats:
     """Run `episodes` episodes of `agent` (a name, a path or a policy object) from seeds
-    seed, seed + 1, ...; record the first one as a video if `video_dir` is given."""
+    seed, seed + 1, ...; record the first one as a video if `video_dir` is given.
+    randomize: draw each episode's physical parameters (agents.randomization, as training
+    does); the model-based agents keep the nominal model."""
+    from .randomization import env_kwargs
+
     env_id = check_env_id(env_id)
     if episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes}.")
-    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    options = env_kwargs(env_id, randomize)
+    mode = "vector_entry_point"
+    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode=mode, **options)
     try:
         policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
         check_policy_fits(policy, venv)
@@ -160,6 +167,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--video", metavar="DIR", help="record the first episode to DIR (mp4)")
     parser.add_argument("--stochastic", action="store_true", help="sample trained policies")
+    from .randomization import add_option
+
+    add_option(parser, "each episode", "; the model-based agents keep the nominal model")
     return parser
 
 
@@ -179,13 +189,18 @@ def main(argv: list[str] | None = None) -> int:
     from .common import set_torch_threads
 
     set_torch_threads(DEFAULT_TORCH_THREADS)
+    from .randomization import describe, parse_option
+
     try:
+        randomize = parse_option(args.randomize)
         stats = evaluate(
-            env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic
-        )
+            env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic,
+            randomize,
+        )  # fmt: skip
     except (ValueError, FileNotFoundError) as exc:
         fail(parser, exc)
-    print(f"{args.agent} on {env_id}: {stats.summary()}")
+    where = f" ({describe(randomize)})" if randomize else ""
+    print(f"{args.agent} on {env_id}{where}: {stats.summary()}")
     if args.video:
         print(f"Video in {args.video}")
     return 0

@@ -7,7 +7,8 @@ entry for every env, and entries keyed by env id that override it (also for envs
 not Lagrange envs, such as Pendulum-v1). Keys the training program interprets itself:
 `n_timesteps` (default budget), `n_envs`, `policy`, `normalize` (bool or VecNormalize
 keyword arguments), `action_noise` ({type: normal, sigma: S}), `policy_kwargs` (with
-`activation_fn` by name), `handover` (agents.handover) and schedules written "lin_X"
+`activation_fn` by name), `handover` (agents.handover), `randomize` (physical parameters
+drawn at every reset of the training envs: agents.randomization) and schedules written "lin_X"
 (linear decay from X to 0). Everything else goes to the algorithm.
 
 A bad value is a UserError of one line naming the file (or the task) and the key. YAML
@@ -49,6 +50,7 @@ MANAGED_KEYS = (
     "action_noise",
     "policy_kwargs",
     "handover",
+    "randomize",
 )
 
 
@@ -184,6 +186,12 @@ def _handover(v):
     return v  # as written (config.yml records it so; agents.handover fills the defaults)
 
 
+def _randomize(v):
+    from .randomization import check_setting
+
+    return check_setting(v)
+
+
 _fraction = real(0.0, 1.0)
 RULES = {
     "n_timesteps": integer(1, 10**10),
@@ -193,6 +201,7 @@ RULES = {
     "action_noise": optional(_noise),
     "policy_kwargs": optional(_table_of(_POLICY_KWARGS)),
     "handover": optional(_handover),
+    "randomize": optional(_randomize),
     "gamma": real(0.0, 1.0, open_low=True),
     "gae_lambda": _fraction,
     "learning_rate": schedule_of(real(0.0, 1.0, open_low=True)),

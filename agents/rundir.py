@@ -53,11 +53,11 @@ def default_run_dir(env_id: str, algo: str, seed: int) -> Path:
 
 
 
-def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int) -> Path:
+def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int, tag: str = "") -> Path:
     """`agents.check`'s run directory: each budget trains in a directory of its own, so
     asking for another budget starts a fresh run and keeps the earlier one (asked for
-    again, it is resumed or reused)."""
-    return out / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{budget}steps"
+    again, it is resumed or reused); `tag` names a randomised run's setting."""
+    return out / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{budget}steps{tag}"
 
 
 @contextlib.contextmanager

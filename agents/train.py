@@ -30,6 +30,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
+from . import randomization
 from .callbacks import (
     AtomicCheckpoint,
     EvaluationStopped,
@@ -50,11 +51,12 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
-from .hparams import ALGOS, algorithms, load_hyperparams
+from .hparams import ALGOS, algorithms, check_entries, load_hyperparams
 from .rundir import (
     default_run_dir,
     exclusive,
     prepare_run_dir,
+    read_config,
     remove_stale_temporaries,
 )
 from .vecenv import VECTORIZATIONS, make_envs
@@ -123,6 +125,7 @@ def train(
     hyperparams: str | Path | None = None,
     overwrite: bool = False,
     allow_missing_buffer: bool = False,
+    randomize: dict | None = None,
 ) -> TrainResult:
     """Train `algo` on `env_id`; return where the model is and how it evaluated.
 
@@ -132,7 +135,9 @@ def train(
     total/10 but at least 2000, and total/5). A directory holding an earlier run needs
     `resume` (continue from its newest checkpoint) or `overwrite` (delete it, start afresh);
     an off-policy checkpoint without its replay buffer is refused unless
-    `allow_missing_buffer` (the run then goes on with an empty buffer).
+    `allow_missing_buffer` (the run then goes on with an empty buffer). randomize: the
+    hyperparameter `randomize` (agents.randomization, e.g. {"inertial": 0.25}) overriding
+    the YAML's; a resumed run without it keeps the one its config.yml records.
 
     Raises UserError for problems with the arguments, the hyperparameters or the run
     directory (before anything is written), and TrainingInterrupted after saving when
@@ -148,6 +153,11 @@ def train(
         raise UserError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
     set_torch_threads(threads)
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
+    if randomize is None and resume:
+        randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
+    if randomize is not None:
+        hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
+    env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing
     with exclusive(run_dir):
         remove_stale_temporaries(run_dir)
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite)
@@ -161,6 +171,10 @@ def train(
             "hyperparams_file": None if hyperparams is None else str(hyperparams),
             "hyperparams": hp,
         }
+        if env_options:  # what the setting meant for this env: absolute ranges, model units
+            config["env_options"] = {
+                "randomize": {k: list(v) for k, v in env_options["randomize"].items()}
+            }
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq or max(total // 10, 2000),
@@ -273,6 +287,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="YAML file in the format of agents/hyperparams/<algo>.yml; its entries override",
     )
     parser.add_argument("--run-dir", help="output directory (default runs/train/ENV/ALGO_seedS)")
+    randomization.add_option(
+        parser, "the training envs", "; overrides the hyperparameter `randomize`"
+    )
     parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint")
     parser.add_argument(
         "--overwrite",
@@ -319,6 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     try:
+        randomize = randomization.parse_option(args.randomize)
         result = train(
             env_id,
             args.algo,
@@ -336,6 +354,7 @@ def main(argv: list[str] | None = None) -> int:
             hyperparams=args.hyperparams,
             overwrite=args.overwrite,
             allow_missing_buffer=args.allow_missing_buffer,
+            randomize=randomize,
         )
     except UserError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)

@@ -100,19 +100,21 @@ def _row(value, i: int):
     return value[i]
 
 
-def native_vector_env(env_id: str, n_envs: int) -> gym.vector.VectorEnv:
+def native_vector_env(env_id: str, n_envs: int, **kwargs) -> gym.vector.VectorEnv:
     """The registry's native batched env (vector_entry_point), asked for same-step
     autoreset; an env whose constructor does not take `autoreset_mode` is made as it is
-    (and `supports_native` then reports whether SB3 can drive it)."""
+    (and `supports_native` then reports whether SB3 can drive it). kwargs: env options."""
+    mode = "vector_entry_point"
     try:
         return gym.make_vec(
             env_id,
             num_envs=n_envs,
-            vectorization_mode="vector_entry_point",
+            vectorization_mode=mode,
             autoreset_mode=AutoresetMode.SAME_STEP,
+            **kwargs,
         )
     except (TypeError, ValueError):  # the constructor rejects the keyword
-        return gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point")
+        return gym.make_vec(env_id, num_envs=n_envs, vectorization_mode=mode, **kwargs)
 
 
 def supports_native(env_id: str) -> bool:
@@ -127,18 +129,22 @@ def supports_native(env_id: str) -> bool:
         venv.close()
 
 
-def make_sb3_vec_env(env_id: str, n_envs: int, seed: int, vectorization: str = "auto") -> VecEnv:
+def make_sb3_vec_env(
+    env_id: str, n_envs: int, seed: int, vectorization: str = "auto", env_kwargs=None
+) -> VecEnv:
     """n_envs copies of `env_id` for SB3, with episode statistics (VecMonitor / Monitor).
 
     vectorization: "native" (Gymnasium vector_entry_point, one batched numpy call per step),
-    "dummy" (SB3's DummyVecEnv of single envs) or "auto" (native when available)."""
+    "dummy" (SB3's DummyVecEnv of single envs) or "auto" (native when available).
+    env_kwargs: env options (such as `randomize`) for every copy."""
+    env_kwargs = dict(env_kwargs or {})
     if vectorization not in VECTORIZATIONS:
         raise ValueError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
     native = vectorization == "native" or (vectorization == "auto" and supports_native(env_id))
     if native:
-        venv = VecMonitor(GymnasiumVecEnv(native_vector_env(env_id, n_envs)))
+        venv = VecMonitor(GymnasiumVecEnv(native_vector_env(env_id, n_envs, **env_kwargs)))
     else:
-        venv = make_vec_env(env_id, n_envs=n_envs, vec_env_cls=DummyVecEnv)
+        venv = make_vec_env(env_id, n_envs, vec_env_cls=DummyVecEnv, env_kwargs=env_kwargs)
     venv.seed(seed)
     return venv
 
@@ -154,9 +160,15 @@ def _normalize_kwargs(hp: dict) -> dict | None:
 
 
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):
-    """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks."""
-    train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization)
-    eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization)
+    """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks. With
+    the hyperparameter `randomize` (agents.randomization) both draw their physical
+    parameters at every reset: the evaluations during training score the distribution the
+    agent is trained on."""
+    from .randomization import env_kwargs
+
+    kwargs = env_kwargs(env_id, hp.get("randomize"))
+    train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization, kwargs)
+    eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization, kwargs)
     handover = handover_options(hp.get("handover"))
     if handover is not None:  # the agent learns in the closed loop it will act in
         gamma = float(hp.get("gamma", 0.99))
