@@ -13,7 +13,8 @@ front wheel rate follow lean and steer) leaves four states (phi, delta, phi', de
 input matrix of that reduction is M^-1; its state matrix gives v C1 and g K0 + v^2 K2,
 separated by evaluating at v = 0 and v = 1 (the dependence on v is polynomial, so this is
 exact; the tests check it at other speeds). Parameters are the model's names; the compiled
-model comes from the cache, so a call after the first takes milliseconds.
+model comes from the cache, and its first linearisations run without compiling them
+(`System.linearize`), so a call takes a fraction of a second once the model is derived.
 
     python -m dynamics.bicycle --plot bicycle.png   # matrices, speeds, eigenvalues (figure)
 """
