@@ -6,8 +6,8 @@ All of it needs the compiled whipple_bicycle (cold: derived and compiled in abou
 the fast suite's bicycle env pays anyway). The published matrices, and their following the
 parameters as the paper's Appendix A predicts, are in the fast suite: the linearisations run
 without compiling (a second).
-The rest runs with -m slow (the speeds, eigenvalues and nonlinear simulations: about 16 s
-with a warm cache)."""
+The rest runs with -m slow (the speeds, eigenvalues, nonlinear simulations and the plot: a
+few seconds with a warm cache, the integrator's compilation and matplotlib's import cold)."""
 
 import math
 
