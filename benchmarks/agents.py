@@ -1,12 +1,16 @@
 """Benchmark of the agents: scores at the chosen budget, and the speed facts behind defaults.
 
     python benchmarks/agents.py                 # every env: baselines, LQR, PPO (= agents.check)
+    python benchmarks/agents.py --envs Lagrange/Bicycle-v0 --results docs/data/agents.json
+                                                # these envs' rows replaced, the others kept
     python benchmarks/agents.py --speed         # torch threads; env stepping; PPO vectorisation
 
 The scores part runs the main job (agents.check) into runs/benchmark and prints its table;
 it also writes the rows, with the date and the machine of the run, as JSON (`--results`,
 default runs/benchmark/results.json): the documentation site reads docs/data/agents.json,
-refreshed with `--results docs/data/agents.json`.
+refreshed with `--results docs/data/agents.json`. With `--envs`, only those envs are run,
+and an existing results file keeps every other env's rows with the run that measured them
+(`"runs"`: one record per run; each row's `"run"` is its index there).
 The speed part measures what chose the defaults: PPO training throughput with one and two
 torch threads, how fast SB3's DummyVecEnv of single envs steps compared with the
 environment's native vector env, and PPO's env-steps/s on 16 copies through each (the
@@ -32,7 +36,8 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import envs  # noqa: E402
-from agents.check import run_check  # noqa: E402
+from agents.check import report_dir, run_check  # noqa: E402
+from agents.common import check_env_id  # noqa: E402
 
 
 def ppo_rate(env_id: str, threads: int, steps: int = 8192) -> float:
@@ -122,13 +127,40 @@ def machine() -> dict:
     }
 
 
-def write_results(path: Path, csv_path: Path, meta: dict) -> None:
-    """The report's CSV rows as JSON, with what and where was measured (`meta`)."""
+def read_results(path: Path) -> dict:
+    """A results file as {"runs": [meta, ...], "rows": [...]}, each row naming its run by
+    index; a file of the first form (one run's meta beside its rows) is that one run."""
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if "runs" in data:
+        return data
+    meta = {k: v for k, v in data.items() if k != "rows"}
+    return {"runs": [meta], "rows": [{**r, "run": 0} for r in data["rows"]]}
+
+
+def merge_results(old: dict, rows: list[dict], meta: dict) -> dict:
+    """`old` with the rows of the envs in `rows` replaced by them (measured by `meta`); the
+    runs no row refers to any more are dropped, the others keep their order."""
+    measured = {r["env_id"] for r in rows}
+    kept = [r for r in old["rows"] if r["env_id"] not in measured]
+    used = sorted({r["run"] for r in kept})
+    index = {old_i: new_i for new_i, old_i in enumerate(used)}
+    runs = [old["runs"][i] for i in used] + [meta]
+    kept = [{**r, "run": index[r["run"]]} for r in kept]
+    return {"runs": runs, "rows": kept + [{**r, "run": len(runs) - 1} for r in rows]}
+
+
+def write_results(path: Path, csv_path: Path, meta: dict, merge: bool = False) -> None:
+    """The report's CSV rows as JSON, with what and where was measured (`meta`); merge:
+    into the results already at `path` (if any), replacing only these envs' rows."""
     from dynamics.cache import write_atomic
 
     with open(csv_path, encoding="utf-8", newline="") as f:
         rows = list(csv.DictReader(f))
-    write_atomic(path, (json.dumps({**meta, "rows": rows}, indent=1) + "\n").encode("utf-8"))
+    if merge and path.exists():
+        data = merge_results(read_results(path), rows, meta)
+    else:
+        data = {"runs": [meta], "rows": [{**r, "run": 0} for r in rows]}
+    write_atomic(path, (json.dumps(data, indent=1) + "\n").encode("utf-8"))
 
 
 def speed() -> None:
@@ -163,6 +195,12 @@ def speed() -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--speed", action="store_true", help="measure threads and env stepping")
+    parser.add_argument(
+        "--envs",
+        nargs="+",
+        metavar="ENV_ID",
+        help="run only these envs; an existing results file keeps the other envs' rows",
+    )
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument(
         "--algo", help="train this everywhere (default: the algorithm each task declares)"
@@ -179,8 +217,9 @@ def main(argv: list[str] | None = None) -> int:
     started = datetime.datetime.now(datetime.timezone.utc)
     start = time.perf_counter()
     run_check(
-        None, args.algo, args.episodes, 0, args.out, args.timesteps, fresh=True, progress=False
-    )
+        args.envs, args.algo, args.episodes, 0, args.out, args.timesteps, fresh=True,
+        progress=False,
+    )  # fmt: skip
     wall = time.perf_counter() - start
     args_given = sys.argv[1:] if argv is None else argv
     meta = {
@@ -193,7 +232,10 @@ def main(argv: list[str] | None = None) -> int:
         "machine": machine(),
     }
     out = Path(args.out)
-    write_results(args.results or out / "results.json", out / "results.csv", meta)
+    report = report_dir(out, [check_env_id(e) for e in args.envs or []])
+    write_results(
+        args.results or out / "results.json", report / "results.csv", meta, merge=bool(args.envs)
+    )
     print(f"benchmark wall time {wall:.0f} s")
     return 0
 

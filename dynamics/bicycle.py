@@ -13,7 +13,8 @@ front wheel rate follow lean and steer) leaves four states (phi, delta, phi', de
 input matrix of that reduction is M^-1; its state matrix gives v C1 and g K0 + v^2 K2,
 separated by evaluating at v = 0 and v = 1 (the dependence on v is polynomial, so this is
 exact; the tests check it at other speeds). Parameters are the model's names; the compiled
-model comes from the cache, so a call after the first takes milliseconds.
+model comes from the cache, and its first linearisations run without compiling them
+(`System.linearize`), so a call takes a fraction of a second once the model is derived.
 
     python -m dynamics.bicycle --plot bicycle.png   # matrices, speeds, eigenvalues (figure)
 """
@@ -71,10 +72,7 @@ def _constraint_jacobians(system, x0: np.ndarray) -> tuple[np.ndarray, np.ndarra
     gamma(a + b) - gamma(a) - gamma(b) = -(dB/dq a) b - (dB/dq b) a; with a = e_j and
     b = qdot0, which moves only coordinates B does not depend on (x, theta_R, theta_F),
     the second term vanishes and it is -(dB/dq_j) qdot0 = -dR/dq_j."""
-    module, p = system.kernels()
-    n, m = system.n_q, system.n_c
-    k = n + m
-    u = np.zeros(system.n_u)
+    n = system.n_q
     moving = [j for j in range(n) if x0[n + j] != 0.0]
     if any(system.coordinates[j] not in ("x", "theta_R", "theta_F") for j in moving):
         raise ValueError("the operating point must move only x, theta_R and theta_F.")
@@ -82,15 +80,13 @@ def _constraint_jacobians(system, x0: np.ndarray) -> tuple[np.ndarray, np.ndarra
     def gamma(rates):
         x = x0.copy()
         x[n:] = rates
-        A = np.empty((k, k + 1))
-        r = np.empty(k)
-        module.kkt(0.0, x, u, p, A, r)
-        return r[n:].copy(), A[n:, :n].copy()
+        A, r = system.kkt(x)
+        return r[n:], A[n:, :n]
 
     qd0 = x0[n:]
     scale = max(float(np.abs(qd0).max()), 1.0)
     g0, B = gamma(qd0)  # B: the lower block of the mass/constraint matrix
-    dRdq = np.zeros((m, n))
+    dRdq = np.zeros((system.n_c, n))
     for j in range(n):
         e = np.zeros(n)
         e[j] = scale

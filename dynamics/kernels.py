@@ -229,30 +229,30 @@ def vcos(x):
 
 
 @njit(cache=True, error_model="numpy")
-def erk_rows(T, X, U, p, h, substeps, a, w, c, out, lo, hi):
+def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
     """Rows lo..hi of X advanced by `substeps` explicit Runge-Kutta steps of size h with the
     tableau (a, w, c), inputs held, into out: the rows are copied into columns so that
     `derivative_lanes` evaluates them in vector lanes, and each row's arithmetic is the
     same whatever rows share its block (results do not depend on blocking or threads).
-    Constrained models are projected onto their velocity constraints after every step."""
-    erk_rows_of(T, X, U, p, p.reshape((1, p.shape[0])), False, h, substeps, a, w, c, out, lo, hi)
+    Constrained models are projected onto their velocity constraints after every step.
 
-
-@njit(cache=True, error_model="numpy")
-def erk_rows_of(T, X, U, p, P, per_row, h, substeps, a, w, c, out, lo, hi):
-    """`erk_rows` with the parameters p shared by every row, or (per_row) row r's own
-    parameters P[r]: the same operations on the same values, so a row with parameters P[r]
-    steps bit for bit as it would with p = P[r]."""
+    The parameters are p for every row (P None), or row r's own P[r]: the same operations
+    on the same values, so a row with parameters P[r] steps bit for bit as it would with
+    p = P[r]. numba prunes the branches on `P is None` before compiling, so the shared form
+    never compiles the per-row kernels (the bicycle's `derivative_lanes_p` alone takes 20 s)."""
     m = hi - lo
     if m < LANES_FROM:
         for r in range(lo, hi):
-            erk_row(T, X, U, P[r] if per_row else p, h, substeps, a, w, c, out, r)
+            if P is None:
+                erk_row(T, X, U, p, h, substeps, a, w, c, out, r)
+            else:
+                erk_row(T, X, U, P[r], h, substeps, a, w, c, out, r)
         return
     n2 = X.shape[1]
-    pc = np.empty((P.shape[1], m if per_row else 0))  # the block's parameters, as columns
-    if per_row:
+    pc = np.empty((p.shape[0], 0 if P is None else m))  # the block's parameters, as columns
+    if P is not None:
         for b in range(m):
-            for i in range(P.shape[1]):
+            for i in range(p.shape[0]):
                 pc[i, b] = P[lo + b, i]
     s_count = w.shape[0]
     x = np.empty((n2, m))
@@ -272,10 +272,10 @@ def erk_rows_of(T, X, U, p, P, per_row, h, substeps, a, w, c, out, lo, hi):
             for b in range(m):
                 ts[b] = t[b] + c[s] * h
             if s == 0:
-                if per_row:
-                    derivative_lanes_p(ts, x, u, pc, k[0])
-                else:
+                if P is None:
                     derivative_lanes(ts, x, u, p, k[0])
+                else:
+                    derivative_lanes_p(ts, x, u, pc, k[0])
                 continue
             for i in range(n2):
                 for b in range(m):
@@ -287,10 +287,10 @@ def erk_rows_of(T, X, U, p, P, per_row, h, substeps, a, w, c, out, lo, hi):
                             xs[i, b] += f * k[j, i, b]
                 for b in range(m):
                     xs[i, b] = x[i, b] + h * xs[i, b]
-            if per_row:
-                derivative_lanes_p(ts, xs, u, pc, k[s])
-            else:
+            if P is None:
                 derivative_lanes(ts, xs, u, p, k[s])
+            else:
+                derivative_lanes_p(ts, xs, u, pc, k[s])
         for i in range(n2):
             for b in range(m):
                 xs[i, b] = 0.0
@@ -304,10 +304,10 @@ def erk_rows_of(T, X, U, p, P, per_row, h, substeps, a, w, c, out, lo, hi):
         for b in range(m):
             t[b] += h
         if N_C:
-            if per_row:
-                project_columns_of(t, x, P, lo)
-            else:
+            if P is None:
                 project_columns(t, x, p)
+            else:
+                project_columns_of(t, x, P, lo)
     for b in range(m):
         for i in range(n2):
             out[lo + b, i] = x[i, b]
@@ -397,7 +397,7 @@ def erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, block):
     """`erk_batch` with each row's own parameters P (N, n_p)."""
     n = X.shape[0]
     for j in range((n + block - 1) // block):
-        erk_rows_of(T, X, U, P[0], P, True, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, P[0], P, h, substeps, a, w, c, out, j * block,
                     min(n, (j + 1) * block))  # fmt: skip
 
 
@@ -406,7 +406,7 @@ def erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, block):
     """`erk_batch_rows` with the blocks spread over numba's threads."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows_of(T, X, U, P[0], P, True, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, P[0], P, h, substeps, a, w, c, out, j * block,
                     min(n, (j + 1) * block))  # fmt: skip
 
 
@@ -518,7 +518,8 @@ def erk_batch(T, X, U, p, h, substeps, a, w, c, out, block):
     """`erk_rows` over all rows, `block` rows at a time, on this thread."""
     n = X.shape[0]
     for j in range((n + block - 1) // block):
-        erk_rows(T, X, U, p, h, substeps, a, w, c, out, j * block, min(n, (j + 1) * block))
+        erk_rows(T, X, U, p, None, h, substeps, a, w, c, out, j * block,
+                 min(n, (j + 1) * block))  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -527,7 +528,8 @@ def erk_batch_parallel(T, X, U, p, h, substeps, a, w, c, out, block):
     bit for bit the same result."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, p, h, substeps, a, w, c, out, j * block, min(n, (j + 1) * block))
+        erk_rows(T, X, U, p, None, h, substeps, a, w, c, out, j * block,
+                 min(n, (j + 1) * block))  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy")

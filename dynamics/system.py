@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 from pathlib import Path
 from types import ModuleType
 
@@ -352,6 +353,36 @@ class System:
         out = self._finite("outputs", out, T, X, U)
         return {k: out[:, i].reshape(lead) for i, k in enumerate(self.output_names)}
 
+    def kkt(self, x, u=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(A, r) at one state: the mass/constraint matrix A = [[M, B^T], [B, 0]] (K x K) and
+        the right-hand side r = [F, gamma] of A [qddot; lambda] = r, eq. (7.36)."""
+        T, X, U, lead = self._batch(t, x, u)
+        if lead != ():
+            raise ValueError(f"{self.name}: kkt takes one state (no batch axis); got {lead}.")
+        k = self.n_q + self.n_c
+        A = np.empty((k, k + 1))
+        r = np.empty(k)
+        if not self._interpreted(_kkt_py, T[0], X[0], U[0], A, r):
+            self._m.kkt(T[0], X[0], U[0], self._p, A, r)
+        self._finite("kkt", np.concatenate([A[:, :k].ravel(), r])[None, :], T, X, U)
+        return A[:, :k], r
+
+    def _interpreted(self, program, t, x, u, *out) -> bool:
+        """Run `program` (the generated kernels' Python functions) on one point, while the
+        model's compiled linearisation is not in use yet (`INTERPRETED_POINTS`): True if it
+        filled `out`, False where Python's arithmetic raised (a division by zero, an
+        overflow) and the compiled kernels must give their NaN or inf instead."""
+        used = _interpreted_points.get(self._m.KEY, 0)
+        if used >= INTERPRETED_POINTS or _compiled(self._m):
+            return False
+        _interpreted_points[self._m.KEY] = used + 1
+        try:
+            with np.errstate(all="ignore"):
+                program(self._m, float(t), x.tolist(), u.tolist(), self._p.tolist(), *out)
+        except (ArithmeticError, ValueError):
+            return False
+        return True
+
     def linearize(self, x0, u0=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) with d(dx)/dt = A dx + B du about (x0, u0), from symbolic Jacobians."""
         T, X, U, lead = self._batch(t, x0, u0)
@@ -365,7 +396,8 @@ class System:
         z = np.empty(k)
         Jx = np.empty((k, 2 * n))
         Ju = np.empty((k, self.n_u))
-        self._m.linear_terms(T[0], X[0], U[0], self._p, Am, z, Jx, Ju)
+        if not self._interpreted(_linear_terms_py, T[0], X[0], U[0], Am, z, Jx, Ju):
+            self._m.linear_terms(T[0], X[0], U[0], self._p, Am, z, Jx, Ju)
         terms = np.concatenate([z, Jx.ravel(), Ju.ravel()])[None, :]
         self._finite("linearize", terms, T, X, U)
         with np.errstate(all="ignore"):
@@ -377,6 +409,43 @@ class System:
         B = np.zeros((2 * n, self.n_u))
         B[n:, :] = dz[:n, 2 * n :]
         return A, B
+
+
+INTERPRETED_POINTS = 5000
+"""While a model's linearisation kernel is not compiled (`_compiled`), its first points in a
+process (`System.linearize`, `System.kkt`) run its generated code as plain Python: the same
+arithmetic in the same order (the same numbers; tests/dynamics/test_linearize.py), without
+compiling it. A handful of points (an LQR design, the bicycle's benchmark matrices) then
+costs milliseconds instead of compiling the Jacobians (the bicycle's 4,500 lines: 40 s of
+CPU). A point interpreted costs about 1e-4 of that compilation (two-link arm 0.2 ms
+against 1.5 s, the bicycle 3-6 ms against 40 s), so a planner's many linearisations switch
+to the compiled kernel after this many, having spent at most about half of it."""
+
+_interpreted_points: dict[str, int] = {}
+
+
+def _compiled(m) -> bool:
+    """True when module m's linearisation kernel is compiled: in this process, or in
+    numba's on-disk cache (its index file; then using it costs a file read)."""
+    kernel = m.linear_terms
+    if kernel.signatures:
+        return True
+    try:
+        return os.path.exists(kernel._cache._cache_file._index_path)
+    except AttributeError:  # another numba's private layout: count it as not compiled
+        return False
+
+
+def _kkt_py(m, t, x, u, p, A, r) -> None:
+    m.kkt.py_func(t, x, u, p, A, r)
+
+
+def _linear_terms_py(m, t, x, u, p, A, z, Jx, Ju) -> None:
+    """`linear_terms` of module m through the Python functions of its kernels."""
+    m.kkt.py_func(t, x, u, p, A, z)
+    m.solve.py_func(A, z)
+    m.jacobians.py_func(t, x, u, p, z.tolist(), Jx, Ju)
+    m.kkt_matrix.py_func(t, x, p, A)
 
 
 BLOCK = 64

@@ -139,10 +139,13 @@ def latex_matrix(M, digits: int = 4) -> str:
 
 
 def benchmark() -> dict | None:
+    """The agents benchmark: {"runs": [what measured, ...], "rows": [...]}, each row naming
+    its run by index (benchmarks/agents.py writes it)."""
     return json.loads(RESULTS.read_text(encoding="utf-8")) if RESULTS.exists() else None
 
 
 def measured_on(results: dict) -> str:
+    """When, how and on what machine one run of the benchmark measured its rows."""
     m = results["machine"]
     versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
     return (
@@ -408,7 +411,7 @@ def env_page(env_id: str, anim: dict) -> str:
     results = benchmark()
     rows = [r for r in (results or {}).get("rows", []) if r["env_id"] == env_id]
     if rows:
-        lines += [measured_on(results), "", results_table(rows), ""]
+        lines += [measured_on(results["runs"][rows[0]["run"]]), "", results_table(rows), ""]
     else:
         lines += [
             "This id is not in the agents benchmark (it runs the current version of each "
@@ -581,19 +584,21 @@ def benchmark_page() -> str:
     results = benchmark()
     if results is None:
         return "# Agents benchmark\n\nNo results file (docs/data/agents.json) yet.\n"
+    runs, sections = results["runs"], []
+    for env_id in dict.fromkeys(r["env_id"] for r in results["rows"]):
+        rows = [r for r in results["rows"] if r["env_id"] == env_id]
+        when = f"{measured_on(runs[rows[0]['run']])}\n\n" if len(runs) > 1 else ""
+        sections.append(f"## [{env_id}](envs/{slug(env_id)}.md)\n\n{when}{results_table(rows)}\n")
     return (
         "# Agents benchmark\n\n"
         "Every agent on every current environment (`envs.ENV_IDS`), scored on the same seeded "
         "episodes: success with its 95 % Wilson interval, mean return with its 95 % Student t "
         "interval, how the episodes ended. The numbers are read from `docs/data/agents.json`, "
-        "which `python benchmarks/agents.py --results docs/data/agents.json` writes.\n\n"
-        f"{measured_on(results)}\n\n"
-        + "\n".join(
-            f"## [{env_id}](envs/{slug(env_id)}.md)\n\n"
-            + results_table([r for r in results["rows"] if r["env_id"] == env_id])
-            + "\n"
-            for env_id in dict.fromkeys(r["env_id"] for r in results["rows"])
-        )
+        "which `python benchmarks/agents.py --results docs/data/agents.json` writes (with "
+        "`--envs`, only those envs' rows are measured again; each env's section then says "
+        "which run measured it).\n\n"
+        + (f"{measured_on(runs[0])}\n\n" if len(runs) == 1 else "")
+        + "\n".join(sections)
     )
 
 

@@ -125,7 +125,9 @@ def test_benchmark_numbers_carry_their_date_and_machine(site):
     results = json.loads((ROOT / "docs" / "data" / "agents.json").read_text(encoding="utf-8"))
     html = _page(site, "benchmark")
     assert re.search(r"Measured \d{4}-\d\d-\d\d", html) and "cores" in html
-    for env_id in {r["env_id"] for r in results["rows"]}:
+    for row in results["rows"]:
+        env_id, run = row["env_id"], results["runs"][row["run"]]
         page = unescape(re.sub(r"<[^>]+>", "", _page(site, f"envs/{env_id.replace('/', '-')}")))
-        assert f"Measured {results['finished'][:10]}" in page, env_id
-        assert f"{results['machine']['cores']} cores" in page, env_id
+        assert f"Measured {run['finished'][:10]}" in page, env_id
+        assert f"by {run['command']}" in page, env_id
+        assert f"{run['machine']['cores']} cores" in page, env_id

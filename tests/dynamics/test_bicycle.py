@@ -2,10 +2,12 @@
 A 463: their published matrices, self-stable speeds and eigenvalues (section 5, Table 2), and
 their closed-form expressions for the matrices (Appendix A) at non-default parameters.
 
-All of it needs the compiled whipple_bicycle. Cold, that takes a minute or more on two shared
-cores (compile() 32 s, then 39 s of numba compilation of the linearisation's kernels on first
-use, measured at a load of 2), so the module runs with -m slow; with a warm cache it takes
-about 16 s, most of it the nonlinear simulations."""
+All of it needs the compiled whipple_bicycle (cold: derived and compiled in about 10 s, which
+the fast suite's bicycle env pays anyway). The published matrices, and their following the
+parameters as the paper's Appendix A predicts, are in the fast suite: the linearisations run
+without compiling (a second).
+The rest runs with -m slow (the speeds, eigenvalues, nonlinear simulations and the plot: a
+few seconds with a warm cache, the integrator's compilation and matplotlib's import cold)."""
 
 import math
 
@@ -13,8 +15,6 @@ import numpy as np
 import pytest
 
 from dynamics import bicycle
-
-pytestmark = pytest.mark.slow
 
 # The paper's eq. (5.3)-(5.6) (14 significant digits as published).
 PUBLISHED = {
@@ -135,6 +135,7 @@ def test_matrices_follow_parameters_as_appendix_a_predicts(defaults, changes):
     assert not np.allclose(got[0], PUBLISHED["M"])  # the change is seen at all
 
 
+@pytest.mark.slow
 def test_the_separation_in_speed_is_exact():
     # benchmark_matrices reads C1 and K2 off v = 0 and v = 1; at other speeds the reduced
     # linearisation must be M^-1 of v C1 and g K0 + v^2 K2 exactly (to round-off)
@@ -148,6 +149,7 @@ def test_the_separation_in_speed_is_exact():
         np.testing.assert_allclose(-M @ A4[2:, :2], g * K0 + v * v * K2, rtol=1e-12, atol=1e-10)
 
 
+@pytest.mark.slow
 def test_weave_and_capsize_speeds():
     weave, capsize = bicycle.stable_speeds()
     # The paper's speeds to 14 digits; ours are roots of eigenvalue real parts of matrices
@@ -157,6 +159,7 @@ def test_weave_and_capsize_speeds():
     assert abs(capsize - CAPSIZE) < 1e-10
 
 
+@pytest.mark.slow
 def test_eigenvalues_equal_table_2():
     speeds = sorted(TABLE2)
     got = bicycle.eigenvalues(speeds)
@@ -170,6 +173,7 @@ def test_eigenvalues_equal_table_2():
         np.testing.assert_allclose(np.sort_complex(ev), want, rtol=0, atol=1e-11)
 
 
+@pytest.mark.slow
 def test_nonlinear_motion_keeps_the_constraints():
     """Unforced riding at 5 m/s (self-stable) after a lean-rate kick, RK4 with the step's
     projection: the nonholonomic residual, the holonomic one (the front contact's height)
@@ -201,6 +205,7 @@ def test_nonlinear_motion_keeps_the_constraints():
     assert np.abs(lean[-100:]).max() < 0.2 * np.abs(lean).max()  # ... and it recovered
 
 
+@pytest.mark.slow
 def test_constraint_jacobian_by_polarisation_matches_finite_differences():
     # The reduction's dR/dq comes from the constraint accelerations (exact); central
     # differences of the residual itself agree to their own error, h^2 R''' / 6 (measured
@@ -227,6 +232,7 @@ def test_constraint_jacobian_by_polarisation_matches_finite_differences():
         )
 
 
+@pytest.mark.slow
 def test_small_disturbances_follow_the_linear_equations():
     """A lean-rate kick of 1e-3 rad/s at 5 m/s: the nonlinear model's lean and steer over 2 s
     against M q'' + v C1 q' + (g K0 + v^2 K2) q = 0 from the same start."""
@@ -256,6 +262,7 @@ def test_small_disturbances_follow_the_linear_equations():
     assert worst < 1e-9
 
 
+@pytest.mark.slow
 def test_command_line_prints_the_matrices_and_speeds(capsys):
     assert bicycle.main([]) == 0
     out = capsys.readouterr().out
@@ -272,6 +279,7 @@ def test_bad_parameters_name_the_problem():
         bicycle.benchmark_matrices(m_F=0.0)
 
 
+@pytest.mark.slow
 def test_plot_of_eigenvalues_against_speed(tmp_path):
     path = tmp_path / "bicycle.png"
     assert bicycle.main(["--plot", str(path)]) == 0

@@ -47,3 +47,54 @@ def test_linearisation_of_the_prescribed_rod_is_time_dependent():
     A, B = rod.linearize(np.array([0.3, 0.1]), None, t=0.4)
     np.testing.assert_allclose(A, [[0.0, 1.0], [4.0, 0.0]], rtol=1e-14)  # r'' = W^2 r - ...
     assert B.shape == (2, 0)
+
+
+@pytest.mark.parametrize("name", ["two_link_arm", "rolling_disk"])
+def test_interpreted_linearisation_equals_the_compiled_kernels(name, monkeypatch):
+    """A model's first linearisations run its generated code as Python (no compilation);
+    later ones the compiled kernel: the same arithmetic in the same order."""
+    from dynamics import system as system_module
+
+    system, xs = random_states(name, 3, seed=21)
+    rng = np.random.default_rng(22)
+    us = rng.normal(size=(3, system.n_u))
+    monkeypatch.setattr(system_module, "_interpreted_points", {})
+    monkeypatch.setattr(system_module, "_compiled", lambda m: False)  # whatever ran before
+    programs = []
+    for name_py in ("_linear_terms_py", "_kkt_py"):
+        program = getattr(system_module, name_py)
+        counted = lambda *a, f=program: programs.append(f) or f(*a)  # noqa: E731
+        monkeypatch.setattr(system_module, name_py, counted)
+    interpreted = [system.linearize(x, u) for x, u in zip(xs, us)]
+    kkts = [system.kkt(x, u) for x, u in zip(xs, us)]
+    assert len(programs) == 6  # every one of them ran as Python
+    monkeypatch.setattr(system_module, "INTERPRETED_POINTS", 0)
+    for x, u, (A, B), (K, r) in zip(xs, us, interpreted, kkts):
+        A_c, B_c = system.linearize(x, u)
+        # Python's floats and numba's are both IEEE doubles with the same operations in the
+        # same order and the same libm: equal up to a last-bit difference in a power
+        scale = max(1.0, np.abs(A_c).max())
+        np.testing.assert_allclose(A, A_c, rtol=0, atol=1e-14 * scale)
+        np.testing.assert_allclose(B, B_c, rtol=0, atol=1e-14 * scale)
+        K_c, r_c = system.kkt(x, u)
+        np.testing.assert_allclose(K, K_c, rtol=0, atol=1e-14 * max(1.0, np.abs(K_c).max()))
+        np.testing.assert_allclose(r, r_c, rtol=0, atol=1e-14 * max(1.0, np.abs(r_c).max()))
+    assert system.kernels()[0].linear_terms.signatures
+
+
+def test_interpreted_linearisation_falls_back_where_python_raises(monkeypatch):
+    """A division by zero raises in Python and gives inf in the kernels: the compiled
+    kernel then runs, and the error is the one the checks give for a non-finite result."""
+    from dynamics import system as system_module
+
+    system, xs = random_states("two_link_arm", 1, seed=23)
+    monkeypatch.setattr(system_module, "_interpreted_points", {})
+    monkeypatch.setattr(system_module, "_compiled", lambda m: False)
+
+    def divide_by_zero(*args):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(system_module, "_linear_terms_py", divide_by_zero)
+    A, B = system.linearize(xs[0], np.zeros(system.n_u))
+    assert system.kernels()[0].linear_terms.signatures
+    assert np.isfinite(A).all() and np.isfinite(B).all()
