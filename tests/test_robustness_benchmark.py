@@ -90,11 +90,10 @@ def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
     rows = [r for r in env["rows"] if r["quantity"] == "m2"]
     assert [(r["x"], r["n"]) for r in rows] == [(0.75, 3), (1.0, 3), (1.25, 3)]
     assert all(r["low"] <= r["rate"] <= r["high"] for r in rows)
-    assert set(env["drops"]["lqr"]) == {"m2"}
-    from envs.plant import ENV_OPTIONS
-
-    if "perturb" not in ENV_OPTIONS:  # the grids of perturbations wait for the option
-        assert any("skipped delay" in s for s in env["skipped"])
+    delays = [(r["x"], r["n"]) for r in env["rows"] if r["quantity"] == "delay"]
+    assert delays == [(0.0, 3), (1.0, 3), (2.0, 3)]
+    # the arm's LQR holds at +-25 % of m2 and fails at a delay of one control period
+    assert set(env["drops"]["lqr"]) == {"m2", "delay"}
     text = (tmp_path / "results.md").read_text()
     assert "controllers keep the nominal model" in text and "| m2 | 0.75 |" in text
     assert (tmp_path / "Lagrange-TwoLinkArm-v1.png").stat().st_size > 0
@@ -111,7 +110,7 @@ def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
         == 0
     )
     env = json.loads((merged / "results.json").read_text())["envs"][ARM]
-    assert env["agents"] == ["lqr", "heuristic"] and len(env["rows"]) == 6
+    assert env["agents"] == ["lqr", "heuristic"] and len(env["rows"]) == 9  # 3 + 3 + 3
     assert len(json.loads((merged / "results.json").read_text())["runs"]) == 2
 
 
