@@ -229,7 +229,7 @@ def vcos(x):
 
 
 @njit(cache=True, error_model="numpy")
-def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
+def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
     """Rows lo..hi of X advanced by `substeps` explicit Runge-Kutta steps of size h with the
     tableau (a, w, c), inputs held, into out: the rows are copied into columns so that
     `derivative_lanes` evaluates them in vector lanes, and each row's arithmetic is the
@@ -239,9 +239,11 @@ def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
     The parameters are p for every row (P None), or row r's own P[r]: the same operations
     on the same values, so a row with parameters P[r] steps bit for bit as it would with
     p = P[r]. numba prunes the branches on `P is None` before compiling, so the shared form
-    never compiles the per-row kernels (the bicycle's `derivative_lanes_p` alone takes 20 s)."""
+    never compiles the per-row kernels (the bicycle's `derivative_lanes_p` alone takes 20 s).
+    W (N, n_q), where not None (with P), are generalised forces added to each row's forcing
+    and held over the step (external pushes; W = 0 steps bit for bit as W None)."""
     m = hi - lo
-    if m < LANES_FROM:
+    if m < LANES_FROM and W is None:
         for r in range(lo, hi):
             if P is None:
                 erk_row(T, X, U, p, h, substeps, a, w, c, out, r)
@@ -254,6 +256,11 @@ def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
         for b in range(m):
             for i in range(p.shape[0]):
                 pc[i, b] = P[lo + b, i]
+    wc = np.empty((N_Q, 0 if W is None else m))  # the block's generalised forces, as columns
+    if W is not None:
+        for b in range(m):
+            for i in range(N_Q):
+                wc[i, b] = W[lo + b, i]
     s_count = w.shape[0]
     x = np.empty((n2, m))
     xs = np.empty((n2, m))
@@ -274,8 +281,10 @@ def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
             if s == 0:
                 if P is None:
                     derivative_lanes(ts, x, u, p, k[0])
-                else:
+                elif W is None:
                     derivative_lanes_p(ts, x, u, pc, k[0])
+                else:
+                    derivative_lanes_w(ts, x, u, pc, wc, k[0])
                 continue
             for i in range(n2):
                 for b in range(m):
@@ -289,8 +298,10 @@ def erk_rows(T, X, U, p, P, h, substeps, a, w, c, out, lo, hi):
                     xs[i, b] = x[i, b] + h * xs[i, b]
             if P is None:
                 derivative_lanes(ts, xs, u, p, k[s])
-            else:
+            elif W is None:
                 derivative_lanes_p(ts, xs, u, pc, k[s])
+            else:
+                derivative_lanes_w(ts, xs, u, pc, wc, k[s])
         for i in range(n2):
             for b in range(m):
                 xs[i, b] = 0.0
@@ -397,7 +408,7 @@ def erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, block):
     """`erk_batch` with each row's own parameters P (N, n_p)."""
     n = X.shape[0]
     for j in range((n + block - 1) // block):
-        erk_rows(T, X, U, P[0], P, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, P[0], P, None, h, substeps, a, w, c, out, j * block,
                     min(n, (j + 1) * block))  # fmt: skip
 
 
@@ -406,72 +417,17 @@ def erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, block):
     """`erk_batch_rows` with the blocks spread over numba's threads."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, P[0], P, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, P[0], P, None, h, substeps, a, w, c, out, j * block,
                     min(n, (j + 1) * block))  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy")
 def erk_batch_w(T, X, U, P, W, h, substeps, a, w, c, out, block):
     """`erk_batch_rows` with the generalised forces W (N, n_q) added to each row's forcing
-    and held over the step (external pushes): `block` rows at a time in vector lanes, by
-    the same operations as `erk_rows_of` (so W = 0 gives its results bit for bit)."""
-    n, n2, nu = X.shape[0], X.shape[1], U.shape[1]
-    s_count = w.shape[0]
+    and held over the step (external pushes): `erk_rows` with W, block by block."""
+    n = X.shape[0]
     for lo in range(0, n, block):
-        m = min(n, lo + block) - lo
-        pc = np.empty((P.shape[1], m))
-        wc = np.empty((N_Q, m))
-        x = np.empty((n2, m))
-        xs = np.empty((n2, m))
-        k = np.empty((s_count, n2, m))
-        u = np.empty((nu, m))
-        t = np.empty(m)
-        ts = np.empty(m)
-        for b in range(m):
-            t[b] = T[lo + b]
-            for i in range(P.shape[1]):
-                pc[i, b] = P[lo + b, i]
-            for i in range(N_Q):
-                wc[i, b] = W[lo + b, i]
-            for i in range(n2):
-                x[i, b] = X[lo + b, i]
-            for j in range(nu):
-                u[j, b] = U[lo + b, j]
-        for _ in range(substeps):
-            for s in range(s_count):
-                for b in range(m):
-                    ts[b] = t[b] + c[s] * h
-                if s == 0:
-                    derivative_lanes_w(ts, x, u, pc, wc, k[0])
-                    continue
-                for i in range(n2):
-                    for b in range(m):
-                        xs[i, b] = 0.0
-                    for j in range(s):
-                        f = a[s, j]
-                        if f != 0.0:
-                            for b in range(m):
-                                xs[i, b] += f * k[j, i, b]
-                    for b in range(m):
-                        xs[i, b] = x[i, b] + h * xs[i, b]
-                derivative_lanes_w(ts, xs, u, pc, wc, k[s])
-            for i in range(n2):
-                for b in range(m):
-                    xs[i, b] = 0.0
-                for s in range(s_count):
-                    f = w[s]
-                    if f != 0.0:
-                        for b in range(m):
-                            xs[i, b] += f * k[s, i, b]
-                for b in range(m):
-                    x[i, b] += h * xs[i, b]
-            for b in range(m):
-                t[b] += h
-            if N_C:
-                project_columns_of(t, x, P, lo)
-        for b in range(m):
-            for i in range(n2):
-                out[lo + b, i] = x[i, b]
+        erk_rows(T, X, U, P[0], P, W, h, substeps, a, w, c, out, lo, min(n, lo + block))
 
 
 @njit(cache=True, error_model="numpy")
@@ -518,7 +474,7 @@ def erk_batch(T, X, U, p, h, substeps, a, w, c, out, block):
     """`erk_rows` over all rows, `block` rows at a time, on this thread."""
     n = X.shape[0]
     for j in range((n + block - 1) // block):
-        erk_rows(T, X, U, p, None, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, p, None, None, h, substeps, a, w, c, out, j * block,
                  min(n, (j + 1) * block))  # fmt: skip
 
 
@@ -528,7 +484,7 @@ def erk_batch_parallel(T, X, U, p, h, substeps, a, w, c, out, block):
     bit for bit the same result."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, p, None, h, substeps, a, w, c, out, j * block,
+        erk_rows(T, X, U, p, None, None, h, substeps, a, w, c, out, j * block,
                  min(n, (j + 1) * block))  # fmt: skip
 
 
