@@ -56,10 +56,9 @@ import numpy as np  # noqa: E402
 import envs  # noqa: E402
 from agents.common import env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.report import wilson_interval  # noqa: E402
-from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
+from benchmarks.robustness_report import AGENTS, Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 
-AGENTS = ("lqr", "plan", "heuristic", "ppo", "ppo-randomized")
 PERTURBATIONS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 RANDOMIZED = {"inertial": 0.25}
 """How `ppo-randomized` is trained (agents.randomization)."""

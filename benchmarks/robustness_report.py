@@ -12,6 +12,9 @@ from pathlib import Path
 
 from agents.common import env_slug, write_atomic
 
+AGENTS = ("lqr", "plan", "heuristic", "ppo", "ppo-randomized")
+"""The agents the benchmark knows, in the order its reports list them."""
+
 THRESHOLD = 0.5
 MODEL_BASED = ("lqr", "plan", "heuristic")
 NOTE = (
@@ -243,8 +246,6 @@ def plot_model_based(results: dict, path: Path) -> bool:
 def merge(results: list[dict]) -> dict:
     """One result from several runs' results.json: per env the rows of every run (a later
     run's row wins where agent, quantity and x coincide), agents, quantities and notes."""
-    from benchmarks.robustness import AGENTS
-
     out: dict = {"envs": {}, "runs": []}
     for res in results:
         out["runs"] += res.get("runs", [])
