@@ -9,9 +9,10 @@ import sympy.physics.mechanics as me
 
 import dynamics
 import dynamics.derive
+from benchmarks.dynamics import cart_chain  # the scaling benchmark's system
 from dynamics.calculus import compact, diff
 from dynamics.program import Program
-from dynamics.spec import ModelSpec, Param, t
+from dynamics.spec import t
 
 a, b, c = sp.symbols("a b c", real=True)
 CASES = [
@@ -70,24 +71,6 @@ def test_derivation_and_code_generation_never_simplify(monkeypatch):
     assert "def derivative_lanes" in generate(d, "key")
     with pytest.raises(AssertionError, match="hot path"):
         d.equations  # noqa: B018  (the display forms do simplify, when asked)
-
-
-def cart_chain(n: int) -> ModelSpec:
-    """n uniform rods (absolute angles from upright) on a cart pushed by a force F."""
-    x = me.dynamicsymbols("x")
-    th = me.dynamicsymbols(f"theta1:{n + 1}")
-    mc, m, l, g = sp.symbols("m_c m l g", positive=True)
-    F = sp.Symbol("F")
-    T, V = mc * x.diff(t) ** 2 / 2, sp.S.Zero
-    px, py = x, sp.S.Zero
-    for i in range(n):
-        cx, cy = px + l / 2 * sp.sin(th[i]), py + l / 2 * sp.cos(th[i])
-        T += m * (cx.diff(t) ** 2 + cy.diff(t) ** 2) / 2 + m * l**2 / 24 * th[i].diff(t) ** 2
-        V += m * g * cy
-        px, py = px + l * sp.sin(th[i]), py + l * sp.cos(th[i])
-    units = {mc: (1.0, "kg"), m: (0.3, "kg"), l: (0.5, "m"), g: (9.81, "m/s^2")}
-    params = {s: Param(*v) for s, v in units.items()}
-    return ModelSpec(f"cart_chain_{n}", (x, *th), T, V, params, (F,), {x: F})
 
 
 def test_chain_on_a_cart_equals_lagranges_method():
