@@ -315,10 +315,7 @@ def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
         for b in range(m):
             t[b] += h
         if N_C:
-            if P is None:
-                project_columns(t, x, p)
-            else:
-                project_columns_of(t, x, P, lo)
+            project_columns(t, x, p, P, lo)
     for b in range(m):
         for i in range(n2):
             out[lo + b, i] = x[i, b]
@@ -370,35 +367,25 @@ def erk_row(T, X, U, p, h, substeps, a, w, c, out, r):
             x[i, 0] += h * acc
         t[0] += h
         if N_C:
-            project_columns(t, x, p)
+            project_columns(t, x, p, None, 0)
     for i in range(n2):
         out[r, i] = x[i, 0]
 
 
 @njit(cache=True, error_model="numpy")
-def project_columns(t, x, p):
-    """`project` on every row held as a column of x (2n, m)."""
+def project_columns(t, x, p, P, lo):
+    """`project` on every row held as a column of x (2n, m), with the parameters p (P
+    None) or each column b's own P[lo + b] (numba prunes the branch, as in `erk_rows`)."""
     A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     row = np.empty(x.shape[0])
     for b in range(x.shape[1]):
         for i in range(x.shape[0]):
             row[i] = x[i, b]
-        project(t[b], row, p, A, z)
-        for i in range(N_Q, x.shape[0]):
-            x[i, b] = row[i]
-
-
-@njit(cache=True, error_model="numpy")
-def project_columns_of(t, x, P, lo):
-    """`project_columns` with each column b's own parameters P[lo + b]."""
-    A = np.empty((K, K + 1))  # a spare column for solve
-    z = np.empty(K)
-    row = np.empty(x.shape[0])
-    for b in range(x.shape[1]):
-        for i in range(x.shape[0]):
-            row[i] = x[i, b]
-        project(t[b], row, P[lo + b], A, z)
+        if P is None:
+            project(t[b], row, p, A, z)
+        else:
+            project(t[b], row, P[lo + b], A, z)
         for i in range(N_Q, x.shape[0]):
             x[i, b] = row[i]
 
