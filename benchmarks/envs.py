@@ -259,29 +259,11 @@ def per_copy_table(sizes, seconds: float, rounds: int = 5) -> None:
              for k, (lo, hi) in inertial.items()}  # fmt: skip
     kinds = (("shared", {}), ("per-copy", {"randomize": inertial}),
              ("every 10", {"randomize": every}))  # fmt: skip
-    rng = np.random.default_rng(0)
     print("\n| TwoLinkArm-v1, one thread | shared parameters (env-steps/s) "
           "| per-copy parameters | per-copy / shared (same rounds) "
           "| redrawn every 10 steps | every 10 / per-copy |")  # fmt: skip
     print("|---|---|---|---|---|---|")
-    single = {k: gym.make(arm_id, **opts) for k, opts in kinds}
-    actions = rng.uniform(-1, 1, (1000, 2)).astype(np.float32)
-    runs = {k: [] for k in single}
-    for _ in range(rounds):
-        for k, env in single.items():
-            runs[k].append(steps_per_second(env, actions, seconds / rounds))
-    _per_copy_row("single env (gymnasium.make)", runs)
-    for n in sizes:
-        steppers = {
-            k: vector_stepper(gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point",
-                                           num_threads=1, **opts))
-            for k, opts in kinds
-        }  # fmt: skip
-        runs = {k: [] for k in steppers}
-        for _ in range(rounds):
-            for k, step in steppers.items():
-                runs[k].append(rate(step, n, seconds / rounds))
-        _per_copy_row(f"native vector env, N = {n}", runs)
+    _alternating_rounds(arm_id, dict(kinds), sizes, seconds, rounds, _per_copy_row)
 
 
 def _per_copy_row(label: str, runs: dict) -> None:
@@ -302,8 +284,7 @@ PERTURBATIONS = {
 
 
 def perturb_table(sizes, seconds: float, rounds: int = 5) -> None:
-    """The cost of perturbations (`perturb=`, a step of separate calls instead of the fused
-    one) against none: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
+    """The cost of perturbations (`perturb=`) against none: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
     `gymnasium.make` and the native vector env at each N, in alternating rounds (the ratio
     to no perturbation taken within each round, medians)."""
     arm_id = "Lagrange/TwoLinkArm-v1"
@@ -311,24 +292,32 @@ def perturb_table(sizes, seconds: float, rounds: int = 5) -> None:
     print("\n| TwoLinkArm-v1, one thread | off (env-steps/s) | "
           + " | ".join(f"{k} (ratio to off)" for k in PERTURBATIONS) + " |")  # fmt: skip
     print("|---|---|" + "---|" * len(PERTURBATIONS))
+    options = {k: {"perturb": v} for k, v in kinds.items()}
+    _alternating_rounds(arm_id, options, sizes, seconds, rounds, _ratio_row)
+
+
+def _alternating_rounds(env_id, kinds: dict, sizes, seconds: float, rounds: int, row) -> None:
+    """Env-steps/s of `env_id` made with each kind's options (name -> env options; one
+    thread), the single env through `gymnasium.make` and the native vector env at each N,
+    the kinds taking turns in every round; `row(label, {kind: [rate per round]})` prints."""
     actions = np.random.default_rng(0).uniform(-1, 1, (1000, 2)).astype(np.float32)
-    single = {k: gym.make(arm_id, perturb=v) for k, v in kinds.items()}
+    single = {k: gym.make(env_id, **opts) for k, opts in kinds.items()}
     runs = {k: [] for k in kinds}
     for _ in range(rounds):
         for k, env in single.items():
             runs[k].append(steps_per_second(env, actions, seconds / rounds))
-    _ratio_row("single env (gymnasium.make)", runs)
+    row("single env (gymnasium.make)", runs)
     for n in sizes:
         steppers = {
-            k: vector_stepper(gym.make_vec(arm_id, n, vectorization_mode="vector_entry_point",
-                                           num_threads=1, perturb=v))
-            for k, v in kinds.items()
+            k: vector_stepper(gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
+                                           num_threads=1, **opts))
+            for k, opts in kinds.items()
         }  # fmt: skip
         runs = {k: [] for k in kinds}
         for _ in range(rounds):
             for k, step in steppers.items():
                 runs[k].append(rate(step, n, seconds / rounds))
-        _ratio_row(f"native vector env, N = {n}", runs)
+        row(f"native vector env, N = {n}", runs)
 
 
 def _ratio_row(label: str, runs: dict) -> None:
