@@ -38,6 +38,9 @@ step): |x - x*| < 0.05 m, |phi| < 0.05 rad, |x_dot| < 0.05 m/s and |phi_dot| < 0
 `gymnasium.make("Examples/GantryCrane-v0", **params)` with the model's parameters by
 name: m_trolley, m_load (kg), l (rope length, m), c (the trolley's viscous friction,
 N*s/m), g; and the env's options.
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np

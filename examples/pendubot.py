@@ -42,6 +42,9 @@ m1, m2 (kg), l1, l2 (the links' lengths, m), b1, b2 (viscous friction at the sho
 the elbow, N*m*s/rad), g; and the env's options (`max_input`, `control_period`, ...).
 The planner's horizon (3 s) is declared: `python -m agents.plan
 examples.pendubot:Examples/Pendubot-v0`.
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np

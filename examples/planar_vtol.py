@@ -45,6 +45,9 @@ speeds below 0.1 m/s.
 `gymnasium.make("Examples/PlanarVTOL-v0", **params)` with the model's parameters by name:
 m (kg), I (kg*m^2), d (m), g; and the env's options (`max_input` as a pair of
 `(low, high)` limits per rotor, `control_period`, ...).
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np

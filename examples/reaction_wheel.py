@@ -42,6 +42,9 @@ Truncation: 500 steps (10 s at 50 Hz). Success (`info["is_success"]` at the last
 name: m_rod, l_rod (the rod's length), m_wheel, I_wheel (the wheel's spin inertia),
 b_wheel (the bearing's viscous friction, N*m*s/rad), g; and the env's options
 (`max_input`, `control_period`, `substeps`, `randomize`, `perturb`).
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np

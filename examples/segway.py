@@ -27,7 +27,7 @@ Clipped; NaN or inf raise.
 `Box(low, high, (9,), float32)`: cos theta, sin theta, theta_dot (+-20 rad/s), psi_dot
 (+-10 rad/s), phi_l_dot, phi_r_dot (+-40 rad/s), the command v* (in [-1, 1] m/s), the speed
 error v - v* (+-6 m/s). The position, heading and wheel angles are cyclic and not
-observed (LQR rebuilds x', y', psi' from the rolling constraints).
+observed (LQR rebuilds x', y' from the rolling constraints).
 
 ## Rewards
 A quadratic cost: `speed` = -(v - v*)^2 (in [-36, 0]), `pitch` = -theta^2 (wrapped, in
@@ -48,6 +48,9 @@ constraints' residual (m/s), kept at round-off by a projection after every step.
 `gymnasium.make("Examples/Segway-v0", **params)` with the model's parameters by name: M,
 l, I_pitch, I_roll, I_yaw (the body), m_w, r, J_w, K_w (each wheel: mass, radius, spin and
 diametral inertia), d (half the track), g; and the env's options.
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np

@@ -40,6 +40,9 @@ steps (5 s at 50 Hz). Success (at the last step): |theta - theta*| < 0.05 rad an
 `gymnasium.make("Examples/SeriesElastic-v0", **params)` with the model's parameters by
 name: J_m (kg*m^2), b_m (N*m*s/rad), k (N*m/rad), m, l (the link's mass and length), g;
 and the env's options.
+
+## Version History
+* v0: initial version.
 """
 
 import numpy as np
