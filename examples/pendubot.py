@@ -16,8 +16,8 @@ them there.
 ```
 
 ## Action Space
-`Box(-1, 1, (1,), float32)`: the shoulder torque tau, action 1 = `max_input` = 1.0 N*m
-(about 0.9 x the torque that holds the stretched arm horizontal). Clipped; NaN or inf raise.
+`Box(-1, 1, (1,), float32)`: the shoulder torque tau, action 1 = `max_input` = 2.0 N*m
+(about 1.8 x the torque that holds the stretched arm horizontal). Clipped; NaN or inf raise.
 
 ## Observation Space
 `Box(low, high, (6,), float32)`: cos and sin of theta1 and of theta2 (in [-1, 1]),
@@ -107,7 +107,7 @@ TASK = envs.Task(
     name="Pendubot",
     model=pendubot,
     actuated=("tau",),
-    max_input=(1.0,),
+    max_input=(2.0,),
     observation=(
         envs.Angle("theta1"),
         envs.Angle("theta2"),
