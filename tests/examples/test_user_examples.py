@@ -160,3 +160,15 @@ def test_lqr_holds_the_stated_start_region(env_id):
     zero = closed_loop.evaluate_near(env_id, ZeroPolicy, episodes=100, seed=0)
     assert lqr.success_rate >= 0.99
     assert zero.success_rate <= (0.2 if env_id == gantry_crane.ID else 0.0)
+
+
+@pytest.mark.slow  # plans a 3 s swing-up: about 30 s on an idle machine
+def test_the_planner_swings_the_pendubot_up_and_lqr_alone_does_not():
+    """From the hanging start, trajectory optimisation + TVLQR succeeds in every episode
+    (measured 20 of 20 with agents.check); LQR, linearised upright, diverges."""
+    from agents.evaluate import evaluate
+
+    plan = evaluate(pendubot.ID, "plan", episodes=5, seed=0)
+    lqr = evaluate(pendubot.ID, "lqr", episodes=5, seed=0)
+    assert plan.success_rate == 1.0, plan.summary()
+    assert lqr.success_rate == 0.0, lqr.summary()
