@@ -450,7 +450,7 @@ def _linear_terms_py(m, t, x, u, p, A, z, Jx, Ju) -> None:
 
 BLOCK = 64
 """Rows integrated together in vector lanes, and the unit of work of a thread
-(benchmarks/dynamics.py measures the choice)."""
+(benchmarks/derivation.py measures the choice)."""
 
 
 def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

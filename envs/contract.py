@@ -23,7 +23,7 @@ def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
 
     One thread by default: on a shared machine (two cores, other processes busy) a second
     thread waits a scheduler timeslice for a core at every step, measured 0.12x the speed
-    of one thread at N = 1024 and 0.7x at 16384 (benchmarks/envs.py). Give
+    of one thread at N = 1024 and 0.7x at 16384 (benchmarks/env_speed.py). Give
     `num_threads=available_cores()` where the cores are yours."""
     return Runtime(Plant.build(task, options), n, perturbed=True)
 

@@ -47,7 +47,7 @@ seed are perturbed alike, and a reset clears the copy's delay line, motor state 
 
 A perturbed env steps through a variant of the fused step (`envs.fused`) that takes the
 applied inputs and the pushes' generalised forces, and the perturbations' own work per
-step is one compiled kernel (`_step`): benchmarks/envs.py --perturb measures the cost.
+step is one compiled kernel (`_step`): benchmarks/env_speed.py --perturb measures the cost.
 """
 
 from __future__ import annotations
