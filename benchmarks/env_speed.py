@@ -1,6 +1,6 @@
 """Speed and accuracy of the Lagrange environments against Gymnasium's Acrobot-v1.
 
-    OMP_NUM_THREADS=1 python benchmarks/env_speed.py [--quick] [--per-copy] [--perturb] [--sizes N ...]
+    OMP_NUM_THREADS=1 python -m benchmarks.env_speed [--quick] [--per-copy] [--perturb] [--sizes N]
 
 Measured in one run, so the ratios hold on a shared machine even when absolute figures
 move: `gymnasium.make` time per id (warm model cache; numba's import, paid once per process,

@@ -9,7 +9,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _benchmark():
-    spec = importlib.util.spec_from_file_location("agents_benchmark", ROOT / "benchmarks/baselines.py")
+    spec = importlib.util.spec_from_file_location("baselines", ROOT / "benchmarks/baselines.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
