@@ -14,7 +14,6 @@ from gymnasium.vector import AutoresetMode
 import dynamics
 import envs
 from envs import arm
-from envs.layout import build_layout
 from envs.plant import Plant
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 
@@ -251,12 +250,10 @@ def test_docstring_tables_are_current():
 
 
 def test_the_plant_gives_the_observation_table_of_the_docstring():
-    lay = Plant.build(arm.TASK)
-    with pytest.warns(DeprecationWarning, match="Plant.build"):  # the former name still works
-        assert build_layout(arm.TASK, {}).columns == lay.columns
-    labels = [c[0] for c in lay.columns]
+    plant = Plant.build(arm.TASK)
+    labels = [c[0] for c in plant.columns]
     assert labels[:4] == ["cos theta1", "sin theta1", "cos theta2", "sin theta2"]
     assert "| 13 | sin(theta2 - theta2*) | -1 | 1 |  |" in arm.__doc__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert lay.obs_size == 14
+        assert plant.obs_size == 14
