@@ -39,7 +39,7 @@ def test_observation_inverse_maps_round_trip(env_id):
         # the float64 observation before rounding to float32 inverts exactly (round-off)
         obs64 = env.unwrapped._rt._obs64[0]
         back = lay.state_from_observation(obs64[None])[0]
-        seen = [i for i, *_ in lay._state_from_obs[0]] + [i for i, _ in lay._state_from_obs[1]]
+        seen = [i for i, *_ in lay.observation.state_map[0]] + [i for i, _ in lay.observation.state_map[1]]
         err = back[seen] - x[seen]
         angle = np.isin(seen, np.flatnonzero(lay.periodic))
         err[angle] = dynamics.wrap(err[angle])
