@@ -189,8 +189,11 @@ class _Compiler:
             columns=tuple(self.columns),
             periodic=self.periodic,
             unobserved=tuple(names[i] for i in range(n) if i not in observed),
-            state_map=(self.angles_x, self.values_x,
-                       [n + i for i in range(n) if n + i not in observed]),  # fmt: skip
+            state_map=(
+                self.angles_x,
+                self.values_x,
+                [n + i for i in range(n) if n + i not in observed],
+            ),  # fmt: skip
             goal_map=(self.angles_g, self.values_g, fixed, missing),
         )
 

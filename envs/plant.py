@@ -328,8 +328,9 @@ def _declared(task: Task, system, p, max_input) -> dict:
     return {
         "state_names": names,
         "row_names": row_names,
-        "output_index": np.array([system.output_names.index(k) for k in task.outputs],
-                                 dtype=np.int64),  # fmt: skip
+        "output_index": np.array(
+            [system.output_names.index(k) for k in task.outputs], dtype=np.int64
+        ),  # fmt: skip
         "actuated": actuated,
         "input_low": low,
         "input_high": high,

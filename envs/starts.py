@@ -78,9 +78,9 @@ def _given(plant, options: dict, rows, batch):
                 f"{x_given[over][0]:.6g} is beyond the task's limit {plant.limits[i]:.6g}."
             )
     if options.get("goal") is not None:
-        g_given = checked_rows(
-            options["goal"], (len(plant.goal_names),), "options['goal']", batch
-        )[rows]
+        g_given = checked_rows(options["goal"], (len(plant.goal_names),), "options['goal']", batch)[
+            rows
+        ]
         for row in g_given:
             check_goal(plant, row)
     return x_given, g_given

@@ -31,21 +31,22 @@ def task_of(env_id):
 @pytest.mark.parametrize("env_id", IDS)
 def test_observation_inverse_maps_round_trip(env_id):
     env = gym.make(env_id).unwrapped
-    lay, rng = env.plant, np.random.default_rng(0)
+    plant, rng = env.plant, np.random.default_rng(0)
     for _ in range(20):
         env.reset(seed=int(rng.integers(1 << 30)))
         x, g = env.state, env.goal
         obs = env.unwrapped._rt.O[0].astype(np.float64)
         # the float64 observation before rounding to float32 inverts exactly (round-off)
         obs64 = env.unwrapped._rt._obs64[0]
-        back = lay.state_from_observation(obs64[None])[0]
-        seen = [i for i, *_ in lay.observation.state_map[0]] + [i for i, _ in lay.observation.state_map[1]]
+        back = plant.state_from_observation(obs64[None])[0]
+        angles, values, _ = plant.observation.state_map
+        seen = [i for i, *_ in angles] + [i for i, _ in values]
         err = back[seen] - x[seen]
-        angle = np.isin(seen, np.flatnonzero(lay.periodic))
+        angle = np.isin(seen, np.flatnonzero(plant.periodic))
         err[angle] = dynamics.wrap(err[angle])
         np.testing.assert_allclose(err, 0, atol=1e-12)
         np.testing.assert_allclose(
-            dynamics.wrap(lay.goal_from_observation(obs64[None])[0] - g), 0, atol=1e-12
+            dynamics.wrap(plant.goal_from_observation(obs64[None])[0] - g), 0, atol=1e-12
         )
         # and the float32 observation to float32 precision
         np.testing.assert_allclose(dynamics.wrap(env.goal_from_observation(obs) - g), 0, atol=1e-5)
@@ -99,11 +100,11 @@ def test_ending_early_never_pays(env_id):
     limit = gym.spec(env_id).max_episode_steps
     # bang-bang actions held for 0.5 s (the next test makes every task diverge)
     vec = gym.make_vec(env_id, 64, vectorization_mode="vector_entry_point", control_period=0.5)
-    lay = vec.unwrapped.plant
-    lowest = lay.lowest_reward
+    plant = vec.unwrapped.plant
+    lowest = plant.lowest_reward
     vec.reset(seed=0)
     rng = np.random.default_rng(0)
-    names = [t.name for t in lay.task.terms]
+    names = [t.name for t in plant.task.terms]
     steps = np.zeros(64, dtype=int)
     for _ in range(60):
         a = rng.choice([-1.0, 1.0], vec.action_space.shape)
@@ -111,7 +112,7 @@ def test_ending_early_never_pays(env_id):
         steps += 1
         stepped = steps > 0  # the others were reset by this step (reward 0)
         terms = np.stack([info["reward_terms"][k] for k in names], axis=1)[stepped]
-        assert ((terms >= lay.term_low) & (terms <= lay.term_high)).all()
+        assert ((terms >= plant.term_low) & (terms <= plant.term_high)).all()
         penalty = np.where(term, (limit - steps) * min(0.0, lowest), 0.0)[stepped]
         np.testing.assert_allclose(
             rew[stepped], terms.sum(axis=1) + penalty, rtol=1e-12, atol=1e-12
