@@ -85,15 +85,12 @@ def pack(constants, dtype):
 
 
 def _functions(rt) -> dict:
-    """role -> (label, fn): the task's functions; a named task has one reward function
-    per term ('term_k'), a task of the former form one 'reward'."""
+    """role -> (label, fn): the task's functions, one per reward term ('term_k'), then
+    'success', 'failure' and 'derived_k'."""
     task, plant = rt.plant.task, rt.plant
     out = {}
-    if task.named:
-        for k, t in enumerate(task.terms):
-            out[f"term_{k}"] = (f"term {t.name!r} ({name_of(t.fn)})", t.fn)
-    else:
-        out["reward"] = (f"reward ({name_of(task.reward)})", task.reward)
+    for k, t in enumerate(task.terms):
+        out[f"term_{k}"] = (f"term {t.name!r} ({name_of(t.fn)})", t.fn)
     out["success"] = (f"success ({name_of(task.success)})", task.success)
     if task.failure is not None:
         out["failure"] = (f"failure ({name_of(task.failure)})", task.failure)
@@ -110,39 +107,26 @@ def compile_functions(rt) -> dict:
     plant = rt.plant
     task = plant.task
     functions = _functions(rt)
-    named = task.named
     rt._types = (
         names.record_type("Rows", plant.row_names),
         names.record_type("Actions", task.actuated),
         names.record_type("Goal", plant.goal_names),
     )
     positional = {
-        role: (label, names.caller(fn, *rt._types) if named else fn)
-        for role, (label, fn) in functions.items()
+        role: (label, names.caller(fn, *rt._types)) for role, (label, fn) in functions.items()
     }
     checks.trial_run(plant, positional)
-    sample = (rt._rows_x, rt.A, rt.G, rt._task_params)
-    if named:
-        sample_named = (
-            *(names.columns(cls, a) for cls, a in zip(rt._types, sample[:3])),
-            rt._task_params,
-        )
-        jitted = {f"_{r}": compile_task_function(fn, sample_named)
-                  for r, (_, fn) in functions.items()}  # fmt: skip
-        calls = {r: names.caller(jitted[f"_{r}"], *rt._types) for r in functions}
-        term_calls = [calls[r] for r in functions if r.startswith("term_")]
-        rt._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
-        rt._success = calls["success"]
-        rt._failure = calls.get("failure")
-        rt._derived = [(col, calls[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)]
-    else:
-        jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
-        rt._reward = bind(jitted["_reward"], sample)
-        rt._success = bind(jitted["_success"], sample)
-        rt._failure = None if task.failure is None else bind(jitted["_failure"], sample)
-        rt._derived = [
-            (col, bind(jitted[f"_derived_{k}"], sample)) for k, (col, _) in enumerate(plant.derived)
-        ]
+    sample = (
+        *(names.columns(cls, a) for cls, a in zip(rt._types, (rt._rows_x, rt.A, rt.G))),
+        rt._task_params,
+    )
+    jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
+    calls = {r: names.caller(jitted[f"_{r}"], *rt._types) for r in functions}
+    term_calls = [calls[r] for r in functions if r.startswith("term_")]
+    rt._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
+    rt._success = calls["success"]
+    rt._failure = calls.get("failure")
+    rt._derived = [(col, calls[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)]
     return jitted
 
 
@@ -176,7 +160,7 @@ def plan(rt):
         "derived": [col for col, _ in plant.derived],
         "n_terms": len(plant.task.terms),
         "failure": plant.task.failure is not None,
-        "named": plant.task.named,
+        "named": True,  # the task functions read their inputs by name (envs.names)
         "widths": (len(plant.row_names), len(plant.actuated), len(plant.goal_names)),
         "types": [cls.__name__ for cls in rt._types],
     }

@@ -340,7 +340,7 @@ def _functions_reading(plant, other) -> tuple[set[str], bool]:
     n_x = plant.system.state_size
     x[:, :n_x] += rng.normal(0.0, 0.5, (len(x), n_x))
     a = rng.uniform(-1.0, 1.0, (len(x), len(plant.actuated)))
-    fns = [(t.name, t.fn) for t in task.terms] if task.named else [("reward", task.reward)]
+    fns = [(t.name, t.fn) for t in task.terms]
     fns += [("success", task.success), ("failure", task.failure)]
     fns += [(f.name, f.fn) for f in task.observation if hasattr(f, "fn")]
     types = (record_type("Rows", plant.row_names), record_type("Actions", task.actuated),
@@ -352,7 +352,7 @@ def _functions_reading(plant, other) -> tuple[set[str], bool]:
     for label, fn in fns:
         if fn is None:
             continue
-        call = caller(fn, *types) if task.named else fn
+        call = caller(fn, *types)
         with np.errstate(all="ignore"):
             ends = [np.asarray(call(x, a, g, p), dtype=np.float64) for p in (plant.p, other)]
             if np.array_equal(*ends, equal_nan=True):

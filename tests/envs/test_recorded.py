@@ -85,7 +85,8 @@ CASES = {
     "single arm randomised": lambda: _single(ARM, randomize=RANDOM, observe_params=True),
     "single arm perturbed": lambda: _single(ARM, perturb=PERTURB),
     "single arm perturbed randomised": lambda: _single(
-        ARM, perturb=PERTURB, randomize={"m2": (0.8, 1.6)}),
+        ARM, perturb=PERTURB, randomize={"m2": (0.8, 1.6)}
+    ),
     "vector arm": lambda: _vector(ARM),
     "vector arm m2=2 separate": lambda: _vector(ARM, separate=True, m2=2.0),
     "vector arm randomised": lambda: _vector(ARM, randomize=RANDOM, observe_params=("m2", "l1")),
@@ -93,7 +94,8 @@ CASES = {
     "vector arm exact values": lambda: _vector(ARM, randomize={}),
     "vector arm perturbed": lambda: _vector(ARM, perturb=PERTURB),
     "vector arm perturbed randomised": lambda: _vector(
-        ARM, perturb=PERTURB, randomize=RANDOM, observe_params=True),
+        ARM, perturb=PERTURB, randomize=RANDOM, observe_params=True
+    ),
     "vector crank randomised": lambda: _vector(CRANK, randomize={"m": (0.5, 2.0)}),
     "vector disk randomised": lambda: _vector(DISK, n=3, randomize={"r": (0.25, 0.35)}),
     "vector disk perturbed": lambda: _vector(DISK, n=3, perturb={"action_noise": 0.05}),

@@ -177,32 +177,29 @@ def test_a_user_task_registers_with_one_call_and_runs_through_make_vec():
 
 
 # ---- task functions numba cannot compile still work -------------------------------------
-def _squared_error(x, g):  # a plain Python helper: numba cannot call it from compiled code
-    e = dynamics.wrap(x[:, :2] - g)
-    return (e * e).sum(axis=1)
+def _squared_error(x, goal):  # a plain Python helper: numba cannot call it from compiled code
+    e1 = dynamics.wrap(x.theta1 - goal.theta1_star)
+    e2 = dynamics.wrap(x.theta2 - goal.theta2_star)
+    return e1 * e1 + e2 * e2
 
 
-def _python_only_reward(x, a, g, p):
-    return -_squared_error(x, g), np.zeros(len(x)), np.zeros(len(x)), np.zeros(len(x))
+def _python_only(x, a, goal, p):
+    return -_squared_error(x, goal)
 
 
-def _arm_success(x, a, g, p):
-    near = (np.abs(dynamics.wrap(x[:, 0] - g[:, 0])) < 0.1) & (
-        np.abs(dynamics.wrap(x[:, 1] - g[:, 1])) < 0.1
-    )
-    return near & (np.abs(x[:, 2]) < 0.5) & (np.abs(x[:, 3]) < 0.5)
+def _zero(x, a, goal, p):
+    return 0.0 * x.theta1
 
 
-def former_form(task, reward, success=_arm_success):
-    """`task` declared the former way: one reward(x, a, g, p) returning every term, and
-    functions reading columns by number (still accepted, with a DeprecationWarning)."""
-    terms = tuple(dataclasses.replace(t, fn=None) for t in task.terms)
-    with pytest.warns(DeprecationWarning, match="former form"):
-        return envs.Task(**{**task.__dict__, "reward": reward, "terms": terms, "success": success})
+def with_first_term(task, fn):
+    """`task` with its first reward term given by `fn` and the others 0."""
+    first, *rest = task.terms
+    terms = (dataclasses.replace(first, fn=fn), *(dataclasses.replace(t, fn=_zero) for t in rest))
+    return dataclasses.replace(task, terms=terms)
 
 
 def test_a_task_function_numba_cannot_type_runs_as_python_with_a_warning():
-    task = former_form(arm.TASK, _python_only_reward)
+    task = with_first_term(arm.TASK, _python_only)
     with pytest.warns(RuntimeWarning, match="plain Python"):
         env = envs.LagrangianEnv(task)
     env.reset(seed=0)
