@@ -84,7 +84,6 @@ class TrainingInterrupted(KeyboardInterrupt):
         self.exit_code = 128 + signum
 
 
-
 # ---- the work ----------------------------------------------------------------------------
 def train(
     env_id: str,
