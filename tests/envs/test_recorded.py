@@ -3,8 +3,8 @@ envs, vector envs (shared, per-copy and randomised parameters, observed paramete
 mid-episode redraws, once-only draws, constants that follow each copy), perturbed envs
 (noise, motor, delay, pushes), the step of separate calls and an env's simulator.
 
-The file was written by this module (`python -m tests.envs.test_recorded`) before the
-plant and its parameter store were rebuilt; a change that moves any of these numbers by
+The file was written by this module (`python -m tests.envs.test_recorded`), run on the
+code before the plant and its parameter store were rebuilt; a change that moves any of these numbers by
 one bit fails here. Write it again only for a change that is meant to move them (and bump
 the versions of the envs whose dynamics, rewards or termination it changes)."""
 
@@ -100,6 +100,16 @@ CASES = {
     "vector disk randomised": lambda: _vector(DISK, n=3, randomize={"r": (0.25, 0.35)}),
     "vector disk perturbed": lambda: _vector(DISK, n=3, perturb={"action_noise": 0.05}),
     "simulator arm": lambda: _simulator(ARM),
+    "vector arm perturbed randomised separate": lambda: _vector(
+        ARM, separate=True, perturb=PERTURB, randomize=RANDOM, observe_params=True
+    ),
+    "vector arm perturbed separate": lambda: _vector(ARM, separate=True, perturb=PERTURB),
+    "vector crank randomised separate": lambda: _vector(
+        CRANK, separate=True, randomize={"m": (0.5, 2.0)}
+    ),
+    "vector disk randomised separate": lambda: _vector(
+        DISK, n=3, separate=True, randomize={"r": (0.25, 0.35)}
+    ),
 }
 
 
