@@ -4,9 +4,10 @@ mid-episode redraws, once-only draws, constants that follow each copy), perturbe
 (noise, motor, delay, pushes), the step of separate calls and an env's simulator.
 
 The file was written by this module (`python -m tests.envs.test_recorded`), run on the
-code before the plant and its parameter store were rebuilt; a change that moves any of these numbers by
-one bit fails here. Write it again only for a change that is meant to move them (and bump
-the versions of the envs whose dynamics, rewards or termination it changes)."""
+code before the plant and its parameter store were rebuilt; a change that moves any of
+these numbers by one bit fails here. Write it again only for a change that is meant to
+move them (and bump the versions of the envs whose dynamics, rewards or termination it
+changes)."""
 
 from __future__ import annotations
 
