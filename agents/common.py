@@ -20,7 +20,7 @@ from dynamics.files import (
     write_atomic,  # noqa: F401
 )
 
-DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/agents.py --threads (2 threads is slower)
+DEFAULT_TORCH_THREADS = 1  # measured: see benchmarks/baselines.py --threads (2 threads is slower)
 
 
 class UserError(ValueError):

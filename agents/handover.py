@@ -110,13 +110,6 @@ class CaptureSet:
         self.simulated = 0  # rows checked by simulation (for reports)
         self._sims: dict = {}
 
-    @classmethod
-    def from_options(cls, env, options: dict) -> CaptureSet:
-        """The capture set of a checked `handover` entry (`handover_options`)."""
-        return cls(
-            env, options["level"], verify=options["verify"], verify_level=options["verify_level"]
-        )
-
     def split(self, obs: np.ndarray):
         """(states, operating states, inputs, inside) of a batch of observations."""
         x, x0, u0, cost = self.cost(obs)

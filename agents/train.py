@@ -22,7 +22,6 @@ import shlex
 import signal
 import sys
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,7 +50,7 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
-from .hparams import ALGOS, algorithms, check_entries, load_hyperparams
+from .hparams import ALGOS, check_entries, load_hyperparams
 from .rundir import (
     default_run_dir,
     exclusive,
@@ -60,26 +59,6 @@ from .rundir import (
     remove_stale_temporaries,
 )
 from .vecenv import VECTORIZATIONS, make_envs
-
-
-def __getattr__(name: str):
-    """Names that moved out of this module (agents.hparams, agents.rundir,
-    agents.callbacks), still reachable here with a DeprecationWarning."""
-    import importlib
-
-    if name == "ALGORITHMS":
-        where, value = "agents.hparams.algorithms()", algorithms()
-    else:
-        for module in ("hparams", "rundir", "callbacks", "vecenv"):
-            mod = importlib.import_module(f"agents.{module}")
-            if hasattr(mod, name):
-                where, value = f"agents.{module}.{name}", getattr(mod, name)
-                break
-        else:
-            raise AttributeError(f"module 'agents.train' has no attribute {name!r}")
-    warnings.warn(f"agents.train.{name} moved to {where}.", DeprecationWarning, stacklevel=2)
-    return value
-
 
 
 @dataclass
@@ -103,7 +82,6 @@ class TrainingInterrupted(KeyboardInterrupt):
         self.result = result
         self.signum = signum
         self.exit_code = 128 + signum
-
 
 
 # ---- the work ----------------------------------------------------------------------------

@@ -79,12 +79,12 @@ def start_centre(env) -> np.ndarray | None:
     """The centre of the task's start distribution (None when `start` is a function)."""
     from envs.task import resolve
 
-    lay = env.plant
-    if callable(lay.task.start):
+    plant = env.plant
+    if callable(plant.task.start):
         return None
     x = np.zeros(env.system.state_size)
-    for name, (lo, hi) in lay.task.start.items():
-        x[lay.state_names.index(name)] = (resolve(lo, lay.p) + resolve(hi, lay.p)) / 2
+    for name, (lo, hi) in plant.task.start.items():
+        x[plant.state_names.index(name)] = (resolve(lo, plant.p) + resolve(hi, plant.p)) / 2
     return x
 
 

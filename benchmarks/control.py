@@ -19,13 +19,11 @@ import importlib
 import os
 import sys
 import time
-from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-from agents.evaluate import evaluate  # noqa: E402
+from agents.evaluate import evaluate
 
 FURUTA_SWING_UP = "Examples/FurutaSwingUp-v0"  # registered by examples.furuta_swing_up
 

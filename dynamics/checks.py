@@ -55,14 +55,6 @@ def real_scalar(owner: str, label: str, value) -> float:
     return float(real_array(owner, label, value))
 
 
-def finite_scalar(owner: str, label: str, value) -> float:
-    """A real, finite float (ValueError naming `label` for NaN or inf)."""
-    v = real_scalar(owner, label, value)
-    if not np.isfinite(v):
-        raise ValueError(f"{owner}: {label} must be finite, got {v}.")
-    return v
-
-
 def parameter(owner: str, name: str, value) -> float:
     """A parameter value: a finite real number, 0 or of magnitude within PARAMETER_RANGE."""
     try:

@@ -5,7 +5,8 @@ the eighth-order solution of Dormand and Prince's DOP853 pair (Hairer, Norsett a
 Solving Ordinary Differential Equations I, section II.10; the coefficients as in scipy's
 `dop853_coefficients`, rounded to double), taken at a fixed step without its error
 estimate: 12 evaluations per step, and at the step sizes the environments use its error
-per evaluation is orders of magnitude below RK4's (benchmarks/envs.py, tests/envs/test_physics.py).
+per evaluation is orders of magnitude below RK4's (benchmarks/env_speed.py,
+tests/envs/test_physics.py).
 """
 
 from __future__ import annotations

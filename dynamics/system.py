@@ -68,6 +68,8 @@ class System:
                     f"{self.name}: parameters violate {statement} ({self.parameters})."
                 )
         self.units: dict[str, str] = dict(zip(module.PARAMETERS, module.UNITS))
+        # whether the model declares each parameter positive (a mass, a length)
+        self.positive: dict[str, bool] = dict(zip(module.PARAMETERS, map(bool, module.POSITIVE)))
         # the points an external force may act on: name -> its number of components
         self.points: dict[str, int] = dict(
             zip(getattr(module, "POINTS", ()), getattr(module, "POINT_DIMS", ()))
@@ -292,6 +294,19 @@ class System:
                 if not value > 0:
                     raise ValueError(f"{self.name}: parameters violate {statement} ({given}).")
 
+    @property
+    def parameter_vector(self) -> np.ndarray:
+        """The parameter values as the kernels take them: float64 (len(parameters),), in
+        the order of `parameters` (a copy, the caller's to keep)."""
+        return self._p.copy()
+
+    @property
+    def kernel_module(self) -> ModuleType:
+        """The generated module of numba kernels (its `KEY` hashes all of its code), for
+        code that calls them from its own compiled loops with its own parameter vector
+        (`parameter_vector`) or rows of them (the environments' fused step)."""
+        return self._m
+
     def kernels(self) -> tuple[ModuleType, np.record]:
         """(module, parameters): the generated module of numba kernels (its `KEY` hashes all
         of its code) and the parameter record they take, for code that calls them from its
@@ -450,7 +465,7 @@ def _linear_terms_py(m, t, x, u, p, A, z, Jx, Ju) -> None:
 
 BLOCK = 64
 """Rows integrated together in vector lanes, and the unit of work of a thread
-(benchmarks/dynamics.py measures the choice)."""
+(benchmarks/derivation.py measures the choice)."""
 
 
 def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -21,7 +21,7 @@ from gymnasium.envs.registration import registry
 
 from dynamics import wrap
 
-from . import docs  # noqa: F401  (envs.docs.describe; also the former Task.describe)
+from . import docs  # noqa: F401  (envs.docs.describe)
 from .env import LagrangianEnv
 from .randomize import Choice, LogUniform, TruncNormal, Uniform
 from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value

@@ -1,18 +1,17 @@
 """What the single and the vector env share: the runtime of a bound plant built from the
 env's keyword arguments, and the contract agents read (plant, system, state, goal,
-operating point, inverse maps, action scaling), each delegated to the plant."""
+operating point, inverse maps, action scaling), each delegated to the plant or read from
+the runtime. The episodes' operations (`start`, `begin`, `redraw`) are the runtime's."""
 
 from __future__ import annotations
 
 import os
-import warnings
 from typing import Any
 
 import numpy as np
 
 from .checks import checked_rows, positive_float, positive_int, real_array
 from .plant import Plant
-from .randomize import draw_params, redraw_due
 from .runtime import Runtime
 from .task import Task
 
@@ -23,7 +22,7 @@ def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
 
     One thread by default: on a shared machine (two cores, other processes busy) a second
     thread waits a scheduler timeslice for a core at every step, measured 0.12x the speed
-    of one thread at N = 1024 and 0.7x at 16384 (benchmarks/envs.py). Give
+    of one thread at N = 1024 and 0.7x at 16384 (benchmarks/env_speed.py). Give
     `num_threads=available_cores()` where the cores are yours."""
     return Runtime(Plant.build(task, options), n, perturbed=True)
 
@@ -45,49 +44,6 @@ def horizon(env, task: Task) -> int:
     return int(task.max_episode_steps if steps is None else steps)
 
 
-def start(rt: Runtime, rngs, options: dict | None, rows: list[int], batch: int | None,
-          seeded: bool = False):  # fmt: skip
-    """(states, goals, (parameters, given) or None) that `rows` of `rt` start an episode
-    with, changing nothing: the parameters first (`envs.randomize.draw_params`: drawn where
-    randomised, from each row's generator; those drawn once only at a row's first reset
-    or a reset given a seed, `seeded`), then the starting states and goals
-    (`Plant.start_rows`). Values once given by options['params'] hold for a copy's later
-    resets until a reset with options['params'] replaces them ({} frees them all)."""
-    first = None if rt.drawn is None else (rt.drawn[rows] == 0) | seeded
-    current = None if rt.P is None else rt.P[rows]
-    params, given = draw_params(rt.plant, rngs, options, rows, batch, current, first)
-    if params is not None and given is None:  # the values given before still hold
-        params = np.where(rt.given[rows], rt.P[rows], params)
-    x, g = rt.plant.start_rows(rngs, options, rows, batch, params)
-    return x, g, None if params is None else (params, given)
-
-
-def begin(rt: Runtime, rows: list[int], x, g, params, rngs=None) -> None:
-    """Put `rows` of `rt` at the start `start` gave (their parameters, then their states);
-    a perturbed runtime's rows draw their perturbations from generators spawned from their
-    reset generators `rngs` (indexed by row)."""
-    if params is not None:
-        rt.set_params(rows, params[0])
-        rt.drawn[rows] = True
-        if params[1] is not None:
-            rt.given[rows] = params[1]
-    if rt.perturber is not None and rngs is not None:
-        rt.perturber.reseed(rows, [rngs[i] for i in rows])
-    rt.reset_rows(rows, x, g)
-
-
-def redraw(rt: Runtime, rngs, mask=None) -> None:
-    """After a step: the mid-episode redraws (`when=k`) due in `rt`'s copies (where
-    `mask`), from their generators (`envs.randomize.redraw_due`)."""
-    if rt.plant.randomize is not None and rt.plant.randomize.intervals:
-        redraw_due(rt, rngs, mask)
-
-
-def start_rows(plant: Plant, rngs, options: dict | None, rows: list[int], batch: int | None):
-    """`plant.start_rows` (kept for callers of the former function)."""
-    return plant.start_rows(rngs, options, rows, batch)
-
-
 class ContractMixin:
     """The contract of a Lagrange env over its runtime `self._rt` (single: row 0)."""
 
@@ -97,12 +53,6 @@ class ContractMixin:
     @property
     def plant(self) -> Plant:
         """The bound plant: the task on its compiled model with this env's parameters."""
-        return self._rt.plant
-
-    @property
-    def layout(self) -> Plant:
-        """Deprecated name of `plant`."""
-        warnings.warn("env.layout is now env.plant.", DeprecationWarning, stacklevel=2)
         return self._rt.plant
 
     @property
@@ -196,20 +146,13 @@ class ContractMixin:
         return x0.reshape(lead + x0.shape[-1:]), u0.reshape(lead + u0.shape[-1:])
 
 
-def operating_input(env, x0: np.ndarray) -> np.ndarray:
-    """`env.plant.operating_input(x0)` (kept for callers of the former function)."""
-    return env.plant.operating_input(x0)
-
-
 __all__ = [
     "ContractMixin",
     "available_cores",
     "checked_rows",
     "horizon",
     "make_runtime",
-    "operating_input",
     "positive_float",
     "positive_int",
     "real_array",
-    "start_rows",
 ]

@@ -13,7 +13,6 @@ import ast
 import importlib
 import sys
 import textwrap
-import warnings
 from pathlib import Path
 
 from dynamics.cache import write_atomic
@@ -74,16 +73,6 @@ def document(doc: str, task: Task, **params) -> str:
         return doc.rstrip() + "\n\n" + generated + "\n"
     head = head.split("## Action Space\n")[0].rstrip() + "\n\n"
     return head + generated + "\n\n" + sep + tail
-
-
-def _former_describe(task: Task, **params) -> str:
-    """Deprecated: `envs.docs.describe(task, **params)`."""
-    warnings.warn("Task.describe is now envs.docs.describe.", DeprecationWarning, stacklevel=2)
-    return describe(task, **params)
-
-
-# the former method, kept for users' code; set here so that envs.task imports nothing of this
-Task.describe = _former_describe
 
 
 def regenerated(module_name: str) -> tuple[Path, str, str]:

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import rendering
-from .contract import ContractMixin, begin, horizon, make_runtime, real_array, redraw, start
+from .contract import ContractMixin, horizon, make_runtime, real_array
 from .runtime import NonFiniteActions
 from .task import Task
 
@@ -38,7 +38,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
 
     def __init__(self, task: Task, render_mode: str | None = None, **options: Any):
         self._rt = make_runtime(task, 1, options)
-        lay = self._rt.plant
+        plant = self._rt.plant
         fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata = {**type(self).metadata, "render_fps": fps}
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -47,10 +47,10 @@ class LagrangianEnv(ContractMixin, gym.Env):
                 f"got {render_mode!r}."
             )
         self.render_mode = render_mode
-        self.action_space = spaces.Box(-1.0, 1.0, (len(lay.actuated),), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (len(plant.actuated),), np.float32)
         self._action_shape = self.action_space.shape
         self.observation_space = spaces.Box(
-            lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
+            plant.obs_low.astype(np.float32), plant.obs_high.astype(np.float32), dtype=np.float32
         )
         self._ready = False
         self._horizon: int | None = None
@@ -71,13 +71,13 @@ class LagrangianEnv(ContractMixin, gym.Env):
         state = None if self._np_random is None else self._np_random.bit_generator.state
         super().reset(seed=None if seed is None else int(seed))
         try:
-            x, g, params = start(self._rt, [self.np_random], options, [0], None, seed is not None)
+            x, g, drawn = self._rt.start([self.np_random], options, [0], None, seed is not None)
         except (TypeError, ValueError):  # refused options leave the generator as it was
             self._np_random, self._np_random_seed = before
             if state is not None:
                 self._np_random.bit_generator.state = state
             raise
-        begin(self._rt, [0], x, g, params, [self.np_random])
+        self._rt.begin([0], x, g, drawn, [self.np_random])
         self._ready = True
         self._history = []
         if self.render_mode == "human":
@@ -102,7 +102,7 @@ class LagrangianEnv(ContractMixin, gym.Env):
             diverged = rt.step(a.reshape(1, -1), self._horizon)
         except NonFiniteActions:
             raise ValueError(f"Action contains NaN or inf: {action!r}.") from None
-        redraw(rt, [self.np_random])  # parameters declared to change every k steps
+        rt.redraw([self.np_random])  # parameters declared to change every k steps
         info = self._info(diverged=diverged)
         if self.render_mode == "human":
             self.render()

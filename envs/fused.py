@@ -212,16 +212,16 @@ def source(plan: dict) -> str:
         ]
     if plan["named"]:
         for k in range(plan["n_terms"]):
-            lines.append(f"    Q[:, {k}] = _term_{k}({args})")
+            lines.append(f"    terms[:, {k}] = _term_{k}({args})")
     else:
-        lines.append("    terms = _reward(x, A, G, q)")
+        lines.append("    values = _reward(x, A, G, q)")
         for k in range(plan["n_terms"]):
-            lines.append(f"    Q[:, {k}] = terms[{k}]")
+            lines.append(f"    terms[:, {k}] = values[{k}]")
     lines.append(f"    success[:] = _success({args})")
     if plan["failure"]:
         lines.append(f"    failed[:] = _failure({args})")
     lines += [
-        "    bad = _finish(Q, term_low, term_high, failed, diverged, steps_left, lowest, R,",
+        "    bad = _finish(terms, term_low, term_high, failed, diverged, steps_left, lowest, R,",
         "                  terminated, success, obs64, obs_low, O)",
         "    return 1 if any_diverged or bad else 0",
         "",

@@ -47,7 +47,7 @@ seed are perturbed alike, and a reset clears the copy's delay line, motor state 
 
 A perturbed env steps through a variant of the fused step (`envs.fused`) that takes the
 applied inputs and the pushes' generalised forces, and the perturbations' own work per
-step is one compiled kernel (`_step`): benchmarks/envs.py --perturb measures the cost.
+step is one compiled kernel (`_step`): benchmarks/env_speed.py --perturb measures the cost.
 """
 
 from __future__ import annotations
@@ -219,9 +219,8 @@ class Perturber:
         self.left = np.zeros(n, dtype=np.int64)  # control periods it still acts
         self.applied = np.zeros((n, n_a))  # the inputs of the last step
         self.W = np.zeros((n, 0 if push is None else plant.system.n_q))  # its pushes
+        # the chance that a push starts in a control period without one
         self.chance = 0.0 if push is None else -math.expm1(-plant.control_period / push.every)
-        if push is not None:  # (chance: a push starts in a control period without one)
-            self.P = np.tile(plant.system.kernels()[1], (n, 1))  # the env's parameters
         # each record: action noise, observation noise, a push's direction and its start
         self._cols = {}
         width = 0
@@ -271,8 +270,9 @@ class Perturber:
 
     def before_step(self, actions, T, X, P) -> tuple[np.ndarray, np.ndarray]:
         """(applied, W) for a step under `actions` (N, n_a), finite, from states X at
-        times T with each row's parameters P: the inputs applied to the actuated inputs
-        (N, n_a) and the generalised forces of the pushes (N, n_q; (N, 0) without)."""
+        times T with each row's parameters P (the runtime's `model_params`, read here):
+        the inputs applied to the actuated inputs (N, n_a) and the generalised forces of
+        the pushes (N, n_q; (N, 0) without)."""
         if self.cursor.max() >= BUFFER:
             self._fill(self._all)
         spec, plant, push = self.spec, self.plant, self.spec.push
@@ -285,8 +285,7 @@ class Perturber:
         if spec.delay:
             self.head = (self.head + 1) % spec.delay
         if push is not None:
-            module = plant.system.kernels()[0]
-            module.point_forces_batch(T, X, P, push.index, self.force, self.W)
+            plant.system.kernel_module.point_forces_batch(T, X, P, push.index, self.force, self.W)
         return self.applied, self.W
 
     def observe(self, obs64: np.ndarray, O: np.ndarray, rows=None) -> None:

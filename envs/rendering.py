@@ -310,13 +310,13 @@ def draw_crank(
     _dot(surface, pin, 0.1 * R * frame.scale, JOINT)
 
 
-def draw_generic(surface, x: Sequence[float], layout) -> None:
+def draw_generic(surface, x: Sequence[float], plant) -> None:
     """Any system, one row per coordinate: a dial for each angle (the hand at the angle,
     counter-clockwise from the right) and a slider for each other coordinate within its
     limit (or +-1 when it has none), the rate as a bar beside it."""
     pygame, gfxdraw = _pygame()
     pygame.font.init()
-    names, n = layout.system.coordinates, layout.system.n_q
+    names, n = plant.system.coordinates, plant.system.n_q
     size = surface.get_width()
     row = size / max(n, 1)
     font = pygame.font.Font(None, max(14, int(row / 5)))
@@ -325,7 +325,7 @@ def draw_generic(surface, x: Sequence[float], layout) -> None:
         radius = 0.35 * min(row, size / 3)
         label = font.render(name, True, INK)
         surface.blit(label, (8, cy - label.get_height() / 2))
-        if layout.periodic[i]:
+        if plant.periodic[i]:
             cx = size / 2
             _dot(surface, (cx, cy), radius, GHOST)
             _dot(surface, (cx, cy), radius, INK, filled=False)
@@ -333,13 +333,13 @@ def draw_generic(surface, x: Sequence[float], layout) -> None:
             _bar(surface, (cx, cy), tip, 4, LINK)
             _dot(surface, (cx, cy), 4, JOINT)
         else:
-            bound = layout.limits[i] if np.isfinite(layout.limits[i]) else 1.0
+            bound = plant.limits[i] if np.isfinite(plant.limits[i]) else 1.0
             left, right = 0.25 * size, 0.85 * size
             gfxdraw.hline(surface, int(left), int(right), int(cy), INK)
             frac = 0.5 + 0.5 * max(-1.0, min(1.0, x[i] / bound))
             _dot(surface, (left + frac * (right - left), cy), 0.25 * radius, LINK)
         rate = x[n + i]
-        bound = layout.limits[n + i] if np.isfinite(layout.limits[n + i]) else 10.0
+        bound = plant.limits[n + i] if np.isfinite(plant.limits[n + i]) else 10.0
         width = 0.1 * size * max(-1.0, min(1.0, rate / bound))
         x0 = 0.92 * size
         _bar(surface, (x0, cy), (x0 + width, cy), 6, TRACK)

@@ -28,18 +28,26 @@ Any number in a declaration (a bound, a limit, a range) may instead name a param
 constant of p ("rod_length") or be a function of p, resolved once when the env is built.
 
 The former form, one `reward(x, a, g, p)` returning every term in order with x, a, g 2-D
-arrays read by column number, still works.
+arrays read by column number, was removed: giving `reward` is an error that shows the
+named form.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from .checks import DeclarationError, check_task
 from .distributions import distribution
+
+FORMER_FORM = (
+    "Task {name!r}: `reward=` (one function returning every term, reading columns by "
+    "number) was removed; give each Term its own function, which reads its inputs by name: "
+    "`Term('upright', -1.0, 1.0, fn=upright)` with `def upright(x, a, goal, p): return "
+    "np.cos(x.theta)` (see envs.task)."
+)
+"""The error of a task declared the former way."""
 
 Number = float | str | Callable[[Any], float]
 """A number, the name of a parameter or constant of p, or a function of p giving one."""
@@ -162,8 +170,9 @@ class Task:
     max_input: the physical limit of each actuated input (N*m or N), action 1 maps to it
         (numbers, or one function of p giving them all).
     observation: the features, in order (see `Angle`, `AngleError`, `Value`, `Derived`).
-    terms: the reward's `Term`s, each with its function (the reward is their sum); or
-        `reward`, one function returning every term in order (the former form).
+    terms: the reward's `Term`s, each with its function (the reward is their sum).
+    reward: removed (the former one-function form); given, it is an error that shows the
+        named form.
     success: the task's success criterion (reported as info["is_success"]).
     failure: states that end the episode as failed (terminated), or None.
     goal: the goal's components (`Goal`); () for a task without one.
@@ -216,6 +225,8 @@ class Task:
     randomize: Mapping[str, Any] | None = None
 
     def __post_init__(self):
+        if self.reward is not None:
+            raise DeclarationError(FORMER_FORM.format(name=self.name))
         check_task(self, (Angle, AngleError, Value, Derived), Goal, Term, LQRHints, Heuristic)
         if self.randomize is not None:  # the forms checked here, the names on the model
             if not isinstance(self.randomize, Mapping):
@@ -228,19 +239,6 @@ class Task:
                     distribution(form, key)
                 except ValueError as exc:
                     raise DeclarationError(f"Task {self.name!r}: {exc}") from None
-        if self.reward is not None:
-            warnings.warn(
-                f"Task {self.name!r}: `reward(x, a, g, p)` reading columns by number is the "
-                "former form; give each Term its function (`Term(..., fn=...)`), which "
-                "reads inputs by name (see envs.task).",
-                DeprecationWarning,
-                stacklevel=3,
-            )
-
-    @property
-    def named(self) -> bool:
-        """Whether the task's functions read their inputs by name (see the module docstring)."""
-        return self.reward is None
 
 
 __all__ = [

@@ -12,7 +12,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import rendering
-from .contract import ContractMixin, begin, make_runtime, positive_int, real_array, redraw, start
+from .contract import ContractMixin, make_runtime, positive_int, real_array
 from .env import LagrangianEnv, draw
 from .task import Task
 
@@ -58,13 +58,13 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         )
         fps = max(1, round(min(1.0 / self._rt.control_period, 1000.0)))  # frames/s, capped
         self.metadata["render_fps"] = fps
-        # the spaces of one copy are the single env's, built from the same layout
-        lay = self._rt.plant
+        # the spaces of one copy are the single env's, built from the same plant
+        plant = self._rt.plant
         one = gym.spaces.Box(
-            lay.obs_low.astype(np.float32), lay.obs_high.astype(np.float32), dtype=np.float32
+            plant.obs_low.astype(np.float32), plant.obs_high.astype(np.float32), dtype=np.float32
         )
         self.single_observation_space = one
-        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (len(lay.actuated),), np.float32)
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (len(plant.actuated),), np.float32)
         self.observation_space = batch_space(one, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
@@ -97,13 +97,13 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         states = [r.bit_generator.state for r in rngs]
         rows = list(range(self.num_envs))
         try:
-            x, g, params = start(self._rt, rngs, options, rows, self.num_envs, seed is not None)
+            x, g, drawn = self._rt.start(rngs, options, rows, self.num_envs, seed is not None)
         except (TypeError, ValueError):  # refused options leave the generators as they were
             for r, state in zip(rngs, states):
                 r.bit_generator.state = state
             raise
         self._rngs = rngs
-        begin(self._rt, rows, x, g, params, rngs)
+        self._rt.begin(rows, x, g, drawn, rngs)
         self._done[:] = False
         self._ready = True
         return self._rt.O.copy(), self._info(reset=True)
@@ -120,7 +120,7 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
         rt = self._rt
         resetting = self._done.copy()  # NEXT_STEP: last step's finished copies start afresh
         rt.step(a, self.max_episode_steps)
-        redraw(rt, self._rngs, ~resetting)  # every-k-steps parameters (not of those resetting)
+        rt.redraw(self._rngs, ~resetting)  # every-k-steps parameters (not of those resetting)
         terminated = rt.terminated.copy()
         truncated = (rt.steps >= self.max_episode_steps) & ~terminated
         if resetting.any():
@@ -147,8 +147,8 @@ class LagrangianVectorEnv(ContractMixin, VectorEnv):
 
     def _reset_rows(self, rows: np.ndarray) -> None:
         rows = rows.tolist()
-        x, g, params = start(self._rt, self._rngs, None, rows, self.num_envs)
-        begin(self._rt, rows, x, g, params, self._rngs)
+        x, g, drawn = self._rt.start(self._rngs, None, rows, self.num_envs)
+        self._rt.begin(rows, x, g, drawn, self._rngs)
 
     def _info(self, reset: bool = False) -> dict[str, Any]:
         rt = self._rt

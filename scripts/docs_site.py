@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 DOCS = ROOT / "docs"
 ASSETS = DOCS / "assets" / "envs"  # committed animations: <slug>.gif and <slug>.json
-RESULTS = DOCS / "data" / "agents.json"  # written by benchmarks/agents.py --results
+RESULTS = DOCS / "data" / "agents.json"  # written by benchmarks/baselines.py --results
 NAMESPACE = "Lagrange/"
 PACKAGES = ("dynamics", "envs", "agents")
 BASELINES = ("plan", "lqr", "heuristic")  # agents that need no training, best first on ties
@@ -140,7 +140,7 @@ def latex_matrix(M, digits: int = 4) -> str:
 
 def benchmark() -> dict | None:
     """The agents benchmark: {"runs": [what measured, ...], "rows": [...]}, each row naming
-    its run by index (benchmarks/agents.py writes it)."""
+    its run by index (benchmarks/baselines.py writes it)."""
     return json.loads(RESULTS.read_text(encoding="utf-8")) if RESULTS.exists() else None
 
 
@@ -594,7 +594,7 @@ def benchmark_page() -> str:
         "Every agent on every current environment (`envs.ENV_IDS`), scored on the same seeded "
         "episodes: success with its 95 % Wilson interval, mean return with its 95 % Student t "
         "interval, how the episodes ended. The numbers are read from `docs/data/agents.json`, "
-        "which `python benchmarks/agents.py --results docs/data/agents.json` writes (with "
+        "which `python benchmarks/baselines.py --results docs/data/agents.json` writes (with "
         "`--envs`, only those envs' rows are measured again; each env's section then says "
         "which run measured it).\n\n"
         + (f"{measured_on(runs[0])}\n\n" if len(runs) == 1 else "")
@@ -637,7 +637,7 @@ def pages() -> tuple[dict[str, str], dict[str, bytes]]:
 
 
 # ---- mkdocs hooks ------------------------------------------------------------------------
-GUIDE = ("new-system.md", "scaling-out.md", "errata.md")
+GUIDE = ("new-system.md", "scaling-out.md", "architecture.md", "errata.md")
 
 
 def on_config(config):

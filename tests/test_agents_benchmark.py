@@ -1,4 +1,4 @@
-"""benchmarks/agents.py's results file: a run of some envs replaces their rows only."""
+"""benchmarks/baselines.py's results file: a run of some envs replaces their rows only."""
 
 import csv
 import importlib.util
@@ -9,7 +9,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _benchmark():
-    spec = importlib.util.spec_from_file_location("agents_benchmark", ROOT / "benchmarks/agents.py")
+    spec = importlib.util.spec_from_file_location("baselines", ROOT / "benchmarks/baselines.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

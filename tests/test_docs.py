@@ -27,8 +27,6 @@ def test_the_new_system_walkthrough_runs_as_written(tmp_path, monkeypatch, capsy
     obs, _ = env.reset(seed=0)
     assert obs.shape == (5,) and env.unwrapped.system.parameters["m_pole"] == 0.2
     assert "| 0 | F | 10 |" in envs.docs.describe(module.TASK)
-    with pytest.warns(DeprecationWarning, match="envs.docs.describe"):  # the former name
-        assert module.TASK.describe() == envs.docs.describe(module.TASK)
     from agents import lqr
 
     assert lqr.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0

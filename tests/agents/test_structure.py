@@ -59,18 +59,7 @@ def test_every_program_has_one_form(program):
     assert module.__doc__
 
 
-def test_old_import_paths_still_work_with_a_deprecation_warning():
-    for name in ("lqr_cli", "plan_cli"):
-        sys.modules.pop(f"agents.{name}", None)
-        with pytest.warns(DeprecationWarning, match=f"agents.{name} is deprecated"):
-            module = importlib.import_module(f"agents.{name}")
-        assert callable(module.main)
-    import agents.train
-
-    with pytest.warns(DeprecationWarning, match="moved to agents.rundir"):
-        assert callable(agents.train.latest_checkpoint)
-    with pytest.warns(DeprecationWarning, match="agents.hparams.algorithms"):
-        assert set(agents.train.ALGORITHMS) == {"ppo", "sac", "td3"}
+def test_the_programs_are_their_library_modules():
     from agents.lqr import LQRPolicy  # the library's names, from the program's module too
     from agents.plan import plan, plan_options  # noqa: F401
 

@@ -9,7 +9,7 @@ import sympy.physics.mechanics as me
 
 import dynamics
 import dynamics.derive
-from benchmarks.dynamics import cart_chain  # the scaling benchmark's system
+from benchmarks.derivation import cart_chain  # the scaling benchmark's system
 from dynamics.calculus import compact, diff
 from dynamics.program import Program
 from dynamics.spec import t

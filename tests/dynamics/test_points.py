@@ -77,7 +77,7 @@ def test_the_pushed_step_adds_the_work_of_its_forces_and_nothing_without_them(mo
         rng.uniform(-0.3, 0.3, (rows, 2 * n)) + (0, 0, 1.3, 0, 0, 0, 0, 0, 0, 0)[: 2 * n]
     )
     T, U = np.zeros(rows), np.zeros((rows, system.n_u))
-    P = np.tile(system.kernels()[1], (rows, 1))
+    P = np.tile(system.parameter_vector, (rows, 1))
     plain, pushed = np.empty_like(x), np.empty_like(x)
     system.step_rows_unchecked(T, x, U, P, 0.05, 10, plain, "dop853")
     system.step_pushed_unchecked(T, x, U, P, np.zeros((rows, n)), 0.05, 10, pushed, "dop853")

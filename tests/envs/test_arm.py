@@ -17,7 +17,7 @@ def test_error_columns_are_the_wrapped_goal_errors():
         x = np.concatenate([rng.uniform(-10, 10, 2), rng.uniform(-1, 1, 2)])
         goal = rng.uniform(-np.pi, np.pi, 2)
         obs, _ = env.reset(options={"state": x, "goal": goal})
-        # layout: cos/sin of theta1, theta2, rates, goal angles, then of the goal errors
+        # the columns: cos/sin of theta1, theta2, rates, goal angles, then of the goal errors
         e = np.arctan2(obs[[11, 13]], obs[[10, 12]])
         expected = (x[:2] - goal + np.pi) % (2 * np.pi) - np.pi
         # float32 observation: cos/sin rounded to ~6e-8, so the recovered angle to ~1e-6

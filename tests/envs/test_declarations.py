@@ -63,17 +63,9 @@ def wide_column(x, a, g, p):  # the former form, reading a column the state does
     return np.cos(x[:, 7]), np.zeros(len(x)), np.zeros(len(x))
 
 
-def three_terms_short(x, a, g, p):
-    return np.cos(x[:, 1]), np.zeros(len(x))
-
-
 def _former(reward):
     terms = tuple(dataclasses.replace(t, fn=None) for t in BASE.terms)
-
-    def success(x, a, g, p):
-        return np.abs(x[:, 1]) < 0.05
-
-    return lambda: dataclasses.replace(BASE, reward=reward, terms=terms, success=success)
+    return lambda: dataclasses.replace(BASE, reward=reward, terms=terms)
 
 
 # (declaration, the words its error must contain: the field and the entry)
@@ -91,7 +83,8 @@ MALFORMED_AT_TASK = {
         "`terms (upright)` must be finite",
     ),
     "term without fn": (_swap(terms=(envs.Term("upright", -1, 1),)), "need a function"),
-    "reward and fns": (_swap(reward=cart_pole.upright), "two ways"),
+    "reward and fns": (_swap(reward=cart_pole.upright), "`reward=`"),
+    "former reward form": (_former(wide_column), "fn=upright)` with `def upright(x, a, goal, p)"),
     "success not callable": (_swap(success=True), "`success` must be a function"),
     "start inverted": (_swap(start={"x": (0.5, -0.5)}), "`start['x']` has low 0.5 above high"),
     "start not a pair": (_swap(start={"x": 0.5}), "`start['x']` must be a (low, high) pair"),
@@ -129,8 +122,6 @@ MALFORMED_AT_MAKE = {
     "success float": (_swap(success=float_success), "must give booleans"),
     "typo in a column name": (_swap(terms=_term(typo_column)), "term 'upright' (typo_column)"),
     "edits its input": (_swap(terms=_term(in_place)), "writes into its inputs"),
-    "former form, column 7": (_former(wide_column), "reward (wide_column) indexes beyond"),
-    "former form, a term short": (_former(three_terms_short), "must return 3 terms"),
     "start function NaN": (
         _swap(start=lambda rng, p: (np.full(4, np.nan), np.zeros(0))),
         "`start` must return a finite state",
@@ -207,14 +198,11 @@ SLIP = textwrap.dedent(
     import dataclasses, numpy as np, envs
     from examples import cart_pole
 
-    def far(x, a, g, p):
-        return np.cos(x[:, 50_000_000]), np.zeros(len(x)), np.zeros(len(x))
+    def far(x, a, goal, p):
+        return np.cos(x.theta[50_000_000]) + 0.0 * x.theta
 
-    def success(x, a, g, p):
-        return np.abs(x[:, 1]) < 0.05
-
-    terms = tuple(dataclasses.replace(t, fn=None) for t in cart_pole.TASK.terms)
-    task = dataclasses.replace(cart_pole.TASK, reward=far, terms=terms, success=success)
+    first, *rest = cart_pole.TASK.terms
+    task = dataclasses.replace(cart_pole.TASK, terms=(dataclasses.replace(first, fn=far), *rest))
     try:
         envs.LagrangianEnv(task)
     except IndexError as exc:
@@ -227,7 +215,7 @@ def test_an_index_far_out_of_range_is_an_error_not_a_crash():
     # in a subprocess: unchecked, numba read 400 MB past the buffer and the process died
     out = subprocess.run([sys.executable, "-c", SLIP], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert "IndexError: Task 'CartPole': reward (far) indexes beyond its inputs" in out.stdout
+    assert "IndexError: Task 'CartPole': term 'upright' (far) indexes beyond" in out.stdout
 
 
 def late_nan(x, a, goal, p):  # finite on the sample rows (|x| < 0.5), NaN past 0.6 m

@@ -15,7 +15,7 @@ import envs
 from envs import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
-from tests.envs.test_runtime import former_form
+from tests.envs.test_runtime import with_first_term
 
 IDS = list(envs.ENV_IDS) + [
     "Examples/CartPole-v0",
@@ -141,9 +141,8 @@ def test_a_function_reaching_an_opaque_object_has_no_fingerprint():
 
 
 def _closure_reward(weight):
-    def reward(x, a, g, p):
-        z = np.zeros(len(x))
-        return -weight * x[:, 0] ** 2, z, z, z
+    def reward(x, a, goal, p):
+        return -weight * x.theta1**2
 
     return reward
 
@@ -152,7 +151,7 @@ def test_closures_are_fingerprinted_by_their_cells():
     assert fingerprint(_closure_reward(1.0)) == fingerprint(_closure_reward(1.0))
     assert fingerprint(_closure_reward(1.0)) != fingerprint(_closure_reward(2.0))
     # and the runtime compiles each into its own fused step
-    task = former_form(arm.TASK, _closure_reward(3.0))
+    task = with_first_term(arm.TASK, _closure_reward(3.0))
     env = envs.LagrangianEnv(task)
     env.reset(seed=0)
     _, r, *_ = env.step(np.zeros(2, np.float32))

@@ -52,7 +52,7 @@ def test_off_by_default_keeps_the_fused_step(value):
     for env in (gym.make(ARM, perturb=value).unwrapped, _vec(ARM, 3, perturb=value).unwrapped):
         assert env._rt.perturber is None
         assert env._rt._fused is not None
-        assert "applied" not in envs.fused.source(env._rt._plan()[0])
+        assert "applied" not in envs.fused.source(envs.compiled.plan(env._rt)[0])
 
 
 @pytest.mark.parametrize("env_id", envs.ENV_IDS)

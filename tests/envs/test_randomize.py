@@ -72,7 +72,7 @@ def test_without_randomize_nothing_changes():
     """No `randomize=`: the env's numbers and info are those of an env without the
     feature, and `randomize={}` with no values given steps the same numbers."""
     plain, per_copy = _vec(ARM, 9), _vec(ARM, 9, randomize={})
-    assert plain.unwrapped._rt.P is None
+    assert plain.unwrapped._rt.parameters.P is None
     o1, i1 = plain.reset(seed=3)
     o2, i2 = per_copy.reset(seed=3)
     assert "params" not in i1 and "params" in i2
@@ -173,7 +173,7 @@ def test_bad_declarations_are_refused_naming_the_problem(randomize, message):
 def test_bad_reset_values_are_refused_and_change_nothing():
     vec = _vec(ARM, 2, randomize={})
     vec.reset(seed=0)
-    before = vec.unwrapped._rt.P.copy()
+    before = vec.unwrapped._rt.parameters.P.copy()
     for params, message in (
         ({"m2": -1.0}, "must be positive"),
         ({"mm2": 1.0}, "Did you mean 'm2'"),
@@ -182,7 +182,7 @@ def test_bad_reset_values_are_refused_and_change_nothing():
     ):
         with pytest.raises(ValueError, match=message):
             vec.reset(options={"params": params})
-        assert np.array_equal(vec.unwrapped._rt.P, before)
+        assert np.array_equal(vec.unwrapped._rt.parameters.P, before)
     with pytest.raises(ValueError, match="needs an env made with randomize="):
         gym.make(ARM).reset(options={"params": {"m2": 1.0}})
 

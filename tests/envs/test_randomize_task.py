@@ -15,7 +15,8 @@ import envs
 from agents.lqr_policy import LQRPolicy
 from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
-from envs.randomize import Uniform, constant_inputs
+from envs.parameters import constant_inputs
+from envs.randomize import Uniform
 
 ARM = "Lagrange/TwoLinkArm-v1"
 DEFAULT = {"Ibar1": (0.05, 0.1)}
@@ -31,15 +32,15 @@ def test_a_task_s_randomize_is_the_default_the_option_replaces_or_turns_off():
     # randomize=None (as given by code that passes every option) keeps the task's default
     assert LagrangianEnv(TASK, randomize=None).reset(seed=3)[1]["params"] == info["params"]
     off = LagrangianEnv(TASK, randomize=False)
-    assert off._rt.P is None and "params" not in off.reset(seed=3)[1]
+    assert off._rt.parameters.P is None and "params" not in off.reset(seed=3)[1]
     other = LagrangianEnv(TASK, randomize={"Ibar2": (0.06, 0.07)}).reset(seed=3)[1]["params"]
     assert other["Ibar1"] == 1 / 12  # replaced, not merged: Ibar1 nominal
     assert 0.06 <= other["Ibar2"] <= 0.07
     vec = LagrangianVectorEnv(TASK, num_envs=3)
     assert vec.reset(seed=3)[1]["params"]["Ibar1"][0] == info["params"]["Ibar1"]
     # the built-in envs declare none: unchanged, and False is accepted there too
-    assert gym.make(ARM).unwrapped._rt.P is None
-    assert gym.make(ARM, randomize=False).unwrapped._rt.P is None
+    assert gym.make(ARM).unwrapped._rt.parameters.P is None
+    assert gym.make(ARM, randomize=False).unwrapped._rt.parameters.P is None
 
 
 @pytest.mark.parametrize(
@@ -132,7 +133,7 @@ def test_task_functions_read_each_copy_s_own_parameters(fused):
     bit, what a single env made with that l pays."""
     n, row = 9, 4
     vec = gym.make_vec(ACROBOT, n, vectorization_mode="vector_entry_point", randomize={})
-    assert vec.unwrapped.plant.p_follows
+    assert vec.unwrapped._rt.parameters.follows
     if not fused:
         vec.unwrapped._rt._fused = None
     values = np.full(n, 1.0)
@@ -163,7 +164,7 @@ def test_constants_are_computed_at_each_copy_s_values():
     _, i1 = single.reset(seed=0)
     start = {"state": np.tile(i1["state"], (3, 1)), "goal": np.tile(i1["goal"], (3, 1))}
     vec.reset(seed=0, options={"params": {"R": [0.1, 0.105, 0.095]}, **start})
-    p_rows = vec.unwrapped._rt.p_rows
+    p_rows = vec.unwrapped._rt.parameters.records
     assert p_rows[1] == single.unwrapped.plant.p  # every constant, recomputed
     assert p_rows.half_travel[0] == gym.make(CRANK).unwrapped.plant.p.half_travel
     # recomputed only where a parameter they read (R, l, h: the linkage) moved
@@ -185,4 +186,4 @@ def test_a_task_function_that_cannot_read_p_by_row_keeps_it_nominal_and_is_named
     task = dataclasses.replace(base, name="AcrobotScalarP", terms=terms)
     with pytest.warns(RuntimeWarning, match="task function 'height' depend.* randomised 'l'"):
         env = LagrangianEnv(task, randomize={"l": (0.9, 1.1)})
-    assert not env.plant.p_follows and env._rt.p_rows is None
+    assert not env._rt.parameters.follows and env._rt.parameters.records is None

@@ -14,7 +14,6 @@ from gymnasium.vector import AutoresetMode
 import dynamics
 import envs
 from envs import arm
-from envs.layout import build_layout
 from envs.plant import Plant
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 
@@ -32,21 +31,22 @@ def task_of(env_id):
 @pytest.mark.parametrize("env_id", IDS)
 def test_observation_inverse_maps_round_trip(env_id):
     env = gym.make(env_id).unwrapped
-    lay, rng = env.plant, np.random.default_rng(0)
+    plant, rng = env.plant, np.random.default_rng(0)
     for _ in range(20):
         env.reset(seed=int(rng.integers(1 << 30)))
         x, g = env.state, env.goal
         obs = env.unwrapped._rt.O[0].astype(np.float64)
         # the float64 observation before rounding to float32 inverts exactly (round-off)
         obs64 = env.unwrapped._rt._obs64[0]
-        back = lay.state_from_observation(obs64[None])[0]
-        seen = [i for i, *_ in lay._state_from_obs[0]] + [i for i, _ in lay._state_from_obs[1]]
+        back = plant.state_from_observation(obs64[None])[0]
+        angles, values, _ = plant.observation.state_map
+        seen = [i for i, *_ in angles] + [i for i, _ in values]
         err = back[seen] - x[seen]
-        angle = np.isin(seen, np.flatnonzero(lay.periodic))
+        angle = np.isin(seen, np.flatnonzero(plant.periodic))
         err[angle] = dynamics.wrap(err[angle])
         np.testing.assert_allclose(err, 0, atol=1e-12)
         np.testing.assert_allclose(
-            dynamics.wrap(lay.goal_from_observation(obs64[None])[0] - g), 0, atol=1e-12
+            dynamics.wrap(plant.goal_from_observation(obs64[None])[0] - g), 0, atol=1e-12
         )
         # and the float32 observation to float32 precision
         np.testing.assert_allclose(dynamics.wrap(env.goal_from_observation(obs) - g), 0, atol=1e-5)
@@ -100,11 +100,11 @@ def test_ending_early_never_pays(env_id):
     limit = gym.spec(env_id).max_episode_steps
     # bang-bang actions held for 0.5 s (the next test makes every task diverge)
     vec = gym.make_vec(env_id, 64, vectorization_mode="vector_entry_point", control_period=0.5)
-    lay = vec.unwrapped.plant
-    lowest = lay.lowest_reward
+    plant = vec.unwrapped.plant
+    lowest = plant.lowest_reward
     vec.reset(seed=0)
     rng = np.random.default_rng(0)
-    names = [t.name for t in lay.task.terms]
+    names = [t.name for t in plant.task.terms]
     steps = np.zeros(64, dtype=int)
     for _ in range(60):
         a = rng.choice([-1.0, 1.0], vec.action_space.shape)
@@ -112,7 +112,7 @@ def test_ending_early_never_pays(env_id):
         steps += 1
         stepped = steps > 0  # the others were reset by this step (reward 0)
         terms = np.stack([info["reward_terms"][k] for k in names], axis=1)[stepped]
-        assert ((terms >= lay.term_low) & (terms <= lay.term_high)).all()
+        assert ((terms >= plant.term_low) & (terms <= plant.term_high)).all()
         penalty = np.where(term, (limit - steps) * min(0.0, lowest), 0.0)[stepped]
         np.testing.assert_allclose(
             rew[stepped], terms.sum(axis=1) + penalty, rtol=1e-12, atol=1e-12
@@ -177,32 +177,29 @@ def test_a_user_task_registers_with_one_call_and_runs_through_make_vec():
 
 
 # ---- task functions numba cannot compile still work -------------------------------------
-def _squared_error(x, g):  # a plain Python helper: numba cannot call it from compiled code
-    e = dynamics.wrap(x[:, :2] - g)
-    return (e * e).sum(axis=1)
+def _squared_error(x, goal):  # a plain Python helper: numba cannot call it from compiled code
+    e1 = dynamics.wrap(x.theta1 - goal.theta1_star)
+    e2 = dynamics.wrap(x.theta2 - goal.theta2_star)
+    return e1 * e1 + e2 * e2
 
 
-def _python_only_reward(x, a, g, p):
-    return -_squared_error(x, g), np.zeros(len(x)), np.zeros(len(x)), np.zeros(len(x))
+def _python_only(x, a, goal, p):
+    return -_squared_error(x, goal)
 
 
-def _arm_success(x, a, g, p):
-    near = (np.abs(dynamics.wrap(x[:, 0] - g[:, 0])) < 0.1) & (
-        np.abs(dynamics.wrap(x[:, 1] - g[:, 1])) < 0.1
-    )
-    return near & (np.abs(x[:, 2]) < 0.5) & (np.abs(x[:, 3]) < 0.5)
+def _zero(x, a, goal, p):
+    return 0.0 * x.theta1
 
 
-def former_form(task, reward, success=_arm_success):
-    """`task` declared the former way: one reward(x, a, g, p) returning every term, and
-    functions reading columns by number (still accepted, with a DeprecationWarning)."""
-    terms = tuple(dataclasses.replace(t, fn=None) for t in task.terms)
-    with pytest.warns(DeprecationWarning, match="former form"):
-        return envs.Task(**{**task.__dict__, "reward": reward, "terms": terms, "success": success})
+def with_first_term(task, fn):
+    """`task` with its first reward term given by `fn` and the others 0."""
+    first, *rest = task.terms
+    terms = (dataclasses.replace(first, fn=fn), *(dataclasses.replace(t, fn=_zero) for t in rest))
+    return dataclasses.replace(task, terms=terms)
 
 
 def test_a_task_function_numba_cannot_type_runs_as_python_with_a_warning():
-    task = former_form(arm.TASK, _python_only_reward)
+    task = with_first_term(arm.TASK, _python_only)
     with pytest.warns(RuntimeWarning, match="plain Python"):
         env = envs.LagrangianEnv(task)
     env.reset(seed=0)
@@ -251,12 +248,10 @@ def test_docstring_tables_are_current():
 
 
 def test_the_plant_gives_the_observation_table_of_the_docstring():
-    lay = Plant.build(arm.TASK)
-    with pytest.warns(DeprecationWarning, match="Plant.build"):  # the former name still works
-        assert build_layout(arm.TASK, {}).columns == lay.columns
-    labels = [c[0] for c in lay.columns]
+    plant = Plant.build(arm.TASK)
+    labels = [c[0] for c in plant.columns]
     assert labels[:4] == ["cos theta1", "sin theta1", "cos theta2", "sin theta2"]
     assert "| 13 | sin(theta2 - theta2*) | -1 | 1 |  |" in arm.__doc__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert lay.obs_size == 14
+        assert plant.obs_size == 14

@@ -26,9 +26,9 @@ IDS = list(EXAMPLES)
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_each_example_reads_its_inputs_by_name(env_id):
-    # the examples are written on exactly the API a user gets, not the former (x, a, g, p)
-    # column-number form
-    assert EXAMPLES[env_id].TASK.named
+    # the examples are written on exactly the API a user gets: a function per reward term
+    task = EXAMPLES[env_id].TASK
+    assert task.reward is None and all(t.fn is not None for t in task.terms)
 
 
 @pytest.mark.parametrize("env_id", IDS)

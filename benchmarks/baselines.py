@@ -1,9 +1,9 @@
 """Benchmark of the agents: scores at the chosen budget, and the speed facts behind defaults.
 
-    python benchmarks/agents.py                 # every env: baselines, LQR, PPO (= agents.check)
-    python benchmarks/agents.py --envs Lagrange/Bicycle-v0 --results docs/data/agents.json
+    python benchmarks/baselines.py                 # every env: baselines, LQR, PPO (= agents.check)
+    python benchmarks/baselines.py --envs Lagrange/Bicycle-v0 --results docs/data/agents.json
                                                 # these envs' rows replaced, the others kept
-    python benchmarks/agents.py --speed         # torch threads; env stepping; PPO vectorisation
+    python benchmarks/baselines.py --speed         # torch threads; env stepping; PPO vectorisation
 
 The scores part runs the main job (agents.check) into runs/benchmark and prints its table;
 it also writes the rows, with the date and the machine of the run, as JSON (`--results`,
@@ -30,14 +30,13 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import gymnasium as gym  # noqa: E402
-import numpy as np  # noqa: E402
+import gymnasium as gym
+import numpy as np
 
-import envs  # noqa: E402
-from agents.check import report_dir, run_check  # noqa: E402
-from agents.common import check_env_id  # noqa: E402
+import envs
+from agents.check import report_dir, run_check
+from agents.common import check_env_id
 
 
 def ppo_rate(env_id: str, threads: int, steps: int = 8192) -> float:
@@ -223,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     wall = time.perf_counter() - start
     args_given = sys.argv[1:] if argv is None else argv
     meta = {
-        "command": " ".join(["python benchmarks/agents.py", *args_given]),
+        "command": " ".join(["python benchmarks/baselines.py", *args_given]),
         "started": started.isoformat(timespec="seconds"),
         "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "wall_s": round(wall, 1),

@@ -1,7 +1,7 @@
 """Speed of the dynamics layer, with the two-link arm measured against hand-written peers.
 
-    python benchmarks/dynamics.py [--quick]
-    python benchmarks/dynamics.py --scaling [--links 10]
+    python benchmarks/derivation.py [--quick]
+    python benchmarks/derivation.py --scaling [--links 10]
 
 Reports, for every model: cold derive+generate time and first-call (numba) time in a fresh
 cache, warm compile time in a fresh process, microseconds per single `state_derivative`
@@ -36,10 +36,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-import dynamics  # noqa: E402
-from dynamics.integrate import DEFAULT_DT  # noqa: E402
+import dynamics
+from dynamics.integrate import DEFAULT_DT
 
 P = dict(m1=1.0, m2=1.0, l=1.0, l1=0.5, l2=0.5, Ibar1=1 / 12, Ibar2=1 / 12, g=9.81)
 

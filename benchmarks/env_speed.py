@@ -1,6 +1,6 @@
 """Speed and accuracy of the Lagrange environments against Gymnasium's Acrobot-v1.
 
-    OMP_NUM_THREADS=1 python benchmarks/envs.py [--quick] [--per-copy] [--perturb] [--sizes N ...]
+    OMP_NUM_THREADS=1 python -m benchmarks.env_speed [--quick] [--per-copy] [--perturb] [--sizes N]
 
 Measured in one run, so the ratios hold on a shared machine even when absolute figures
 move: `gymnasium.make` time per id (warm model cache; numba's import, paid once per process,
@@ -22,20 +22,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import sys
 import time
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
-# this file's own name would shadow the package: put the project root first
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import dynamics  # noqa: E402
-import envs  # noqa: E402
-from dynamics.methods import METHODS  # noqa: E402
-from envs.contract import available_cores  # noqa: E402
+import dynamics
+import envs
+from dynamics.methods import METHODS
+from envs.contract import available_cores
 
 SIZES = (64, 1024, 16384)
 SWING = np.array([1.5, 1.5, 0.0, 0.0])  # a large swing (absolute angles), released at rest
@@ -284,9 +279,10 @@ PERTURBATIONS = {
 
 
 def perturb_table(sizes, seconds: float, rounds: int = 5) -> None:
-    """The cost of perturbations (`perturb=`) against none: env-steps/s of TwoLinkArm-v1 (one thread), the single env through
-    `gymnasium.make` and the native vector env at each N, in alternating rounds (the ratio
-    to no perturbation taken within each round, medians)."""
+    """The cost of perturbations (`perturb=`) against none: env-steps/s of TwoLinkArm-v1
+    (one thread), the single env through `gymnasium.make` and the native vector env at
+    each N, in alternating rounds (the ratio to no perturbation taken within each round,
+    medians)."""
     arm_id = "Lagrange/TwoLinkArm-v1"
     kinds = {"off": None, **PERTURBATIONS}
     print("\n| TwoLinkArm-v1, one thread | off (env-steps/s) | "

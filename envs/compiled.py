@@ -1,0 +1,205 @@
+"""The task's functions compiled for a runtime: each with numba when numba can type it
+(bounds-checked, cached on disk), else as plain Python with a warning, and bound to the
+machine code for the runtime's own arrays (`bind`)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from dynamics.system import BLOCK, method_tableau
+
+from . import checks, fused, names
+from .observation import observe
+from .row_kernels import advance, apply_actions, finish
+from .task import Derived
+
+_COMPILED: dict = {}
+
+
+def name_of(fn) -> str:
+    return getattr(fn, "__qualname__", repr(fn))
+
+
+def compile_task_function(fn, args):
+    """`fn` compiled with numba, bounds-checked (an index slip raises IndexError, never
+    reads another buffer) and cached on disk when its module allows, or `fn` itself when
+    numba cannot type it; `args` is a sample call used to find out."""
+    key = (fn, tuple(type(a) for a in args))
+    if key in _COMPILED:
+        return _COMPILED[key]
+    import numba
+
+    compiled = fn
+    errors = []
+    for cache in (True, False):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", numba.NumbaWarning)
+                jitted = numba.njit(cache=cache, boundscheck=True)(fn)
+                jitted(*args)
+            compiled = jitted
+            break
+        except Exception as exc:  # numba's typing errors have no common public base
+            errors.append(exc)
+    if compiled is fn:
+        first = str(errors[-1]).strip().splitlines()[0] if errors else ""
+        warnings.warn(
+            f"Task function {getattr(fn, '__qualname__', fn)!r} runs as plain Python (numba "
+            f"could not compile it: {first}). It works, only slower per step.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    _COMPILED[key] = compiled
+    return compiled
+
+
+def bind(fn, args):
+    """The machine code numba compiled of `fn` for the types of `args`, called without
+    numba's per-call type dispatch (about a microsecond for the parameter record, more
+    than the work of one row): for the runtime's own arrays, whose types never change.
+    `fn` itself when it is plain Python or has no overload for those types."""
+    overloads = getattr(fn, "overloads", None)
+    if overloads is None:
+        return fn
+    compiled = overloads.get(tuple(fn.typeof_pyval(a) for a in args))
+    return fn if compiled is None else compiled.entry_point
+
+
+def warm(kernel, *args):
+    """`kernel` bound (see `bind`) after one call on copies of `args`."""
+    kernel(*(a.copy() if isinstance(a, np.ndarray) else a for a in args))
+    return bind(kernel, args)
+
+
+def pack(constants, dtype):
+    """[(name, start, size, shape or None for a scalar)] and the values in one flat array."""
+    table, parts, start = [], [], 0
+    for name, value in constants:
+        v = np.asarray(value, dtype=dtype)
+        table.append((name, start, v.size, None if v.ndim == 0 else v.shape))
+        parts.append(v.ravel())
+        start += v.size
+    return table, np.concatenate(parts)
+
+
+def _functions(rt) -> dict:
+    """role -> (label, fn): the task's functions, one per reward term ('term_k'), then
+    'success', 'failure' and 'derived_k'."""
+    task, plant = rt.plant.task, rt.plant
+    out = {}
+    for k, t in enumerate(task.terms):
+        out[f"term_{k}"] = (f"term {t.name!r} ({name_of(t.fn)})", t.fn)
+    out["success"] = (f"success ({name_of(task.success)})", task.success)
+    if task.failure is not None:
+        out["failure"] = (f"failure ({name_of(task.failure)})", task.failure)
+    features = [f for f in task.observation if isinstance(f, Derived)]
+    for k, ((_, fn), f) in enumerate(zip(plant.derived, features)):
+        out[f"derived_{k}"] = (f"Derived({f.name!r}) ({name_of(fn)})", fn)
+    return out
+
+
+def compile_functions(rt) -> dict:
+    """The task's functions for runtime `rt`, each run once on sample rows
+    (`envs.checks.trial_run`), then compiled (`compile_task_function`) and set as the
+    runtime's `_reward`, `_success`, `_failure` and `_derived`; the compiled ones by role."""
+    plant = rt.plant
+    task = plant.task
+    functions = _functions(rt)
+    rt._types = (
+        names.record_type("Rows", plant.row_names),
+        names.record_type("Actions", task.actuated),
+        names.record_type("Goal", plant.goal_names),
+    )
+    positional = {
+        role: (label, names.caller(fn, *rt._types)) for role, (label, fn) in functions.items()
+    }
+    checks.trial_run(plant, positional)
+    sample = (
+        *(names.columns(cls, a) for cls, a in zip(rt._types, (rt._rows_x, rt.A, rt.G))),
+        rt._task_params,
+    )
+    jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
+    calls = {r: names.caller(jitted[f"_{r}"], *rt._types) for r in functions}
+    term_calls = [calls[r] for r in functions if r.startswith("term_")]
+    rt._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
+    rt._success = calls["success"]
+    rt._failure = calls.get("failure")
+    rt._derived = [(col, calls[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)]
+    return jitted
+
+
+def plan(rt):
+    """(plan, constants as float64, constants as int64) of runtime `rt`'s fused step."""
+    plant, s = rt.plant, rt.system
+    a, w, c = method_tableau(rt.integrator)
+    # the generated step names each array as the runtime does, less the underscore
+    floats = [(name.lstrip("_"), start, w) for name, start, w in rt._segments()]
+    bools = [(name.lstrip("_"), k) for k, name in enumerate(rt._bools)]
+    h = rt.control_period / rt.substeps
+    real = [("input_mid", plant.input_mid), ("input_half", plant.input_half),
+            ("limits", plant.limits), ("obs_low", plant.obs_low),
+            ("obs_high", plant.obs_high), ("term_low", plant.term_low),
+            ("term_high", plant.term_high), ("ta", a), ("tw", w), ("tc", c), ("h", h),
+            ("dt", rt.control_period), ("lowest", rt._lowest)]  # fmt: skip
+    whole = [("actuated", plant.actuated), ("ops", plant.ops),
+             ("output_index", plant.output_index), ("substeps", rt.substeps),
+             ("block", BLOCK)]  # fmt: skip
+    real_constants, C = pack(real, np.float64)
+    whole_constants, K = pack(whole, np.int64)
+    plan = {
+        "model_key": s.kernel_module.KEY,
+        "floats": floats,
+        "bools": bools,
+        "constants": real_constants + whole_constants,
+        "integer_constants": {k for k, _ in whole},
+        "outputs": list(plant.output_index),
+        "n_x": s.state_size,
+        "n_obs": plant.obs_size,
+        "derived": [col for col, _ in plant.derived],
+        "n_terms": len(plant.task.terms),
+        "failure": plant.task.failure is not None,
+        "named": True,  # the task functions read their inputs by name (envs.names)
+        "widths": (len(plant.row_names), len(plant.actuated), len(plant.goal_names)),
+        "types": [cls.__name__ for cls in rt._types],
+    }
+    return plan, C, K
+
+
+def compile_fused(rt, jitted: dict) -> None:
+    """Runtime `rt`'s fused step (envs.fused), when every task function is compiled and
+    one thread steps the rows; else None (the step of separate calls)."""
+    rt._fused = None
+    rt._fused_bound = {}
+    if rt.num_threads > 1 and rt.n > BLOCK:
+        return
+    if not all(hasattr(f, "py_func") for f in jitted.values()):
+        return
+    module = rt.system.kernel_module
+    rows = rt.parameters.per_row  # each row's own parameters: the kernels that read them so
+    functions = {
+        "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
+        "_erk": module.erk_batch_rows if rows else module.erk_batch,
+        "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
+        **({"_erk_w": module.erk_batch_w} if rt._pushed else {}),
+        **jitted,
+    }  # fmt: skip
+    plan_, rt._fused_C, rt._fused_K = plan(rt)
+    plan_["perturbed"], plan_["pushed"] = rt.perturber is not None, rt._pushed
+    types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
+    rt._fused = fused.build(plan_, functions, types)
+
+
+def bind_fused(rt, actions: np.ndarray):
+    """Runtime `rt`'s fused step's machine code for arrays like `actions` (compiled or
+    loaded from numba's cache on first use), bound as `bind` does."""
+    f = actions.flags
+    args = (actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
+            rt._task_params, -1)  # fmt: skip
+    if rt.perturber is not None:  # samples of the applied inputs and the forces
+        args += (rt.perturber.applied, rt.perturber.W)
+    rt._fused.compile(tuple(rt._fused.typeof_pyval(a) for a in args))
+    step = bind(rt._fused, args)
+    rt._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
+    return step
