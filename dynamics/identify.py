@@ -39,6 +39,7 @@ Parameters the data cannot determine are held at their given values and listed i
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -99,6 +100,10 @@ class Identification:
     condition: float
     violated: list[str] = field(default_factory=list)
     unknown: tuple[str, ...] = ()
+    fitted: dict = field(default_factory=dict)
+    """The record's equations as fitted: time (rows,), measured and predicted (rows, n_eq):
+    the generalised forces of the inputs (and of everything not unknown) against the model's
+    prediction (the momentum form: averaged over each window)."""
 
 
 def identify(
@@ -112,6 +117,7 @@ def identify(
     span: int | None = None,
     width: float = COULOMB_WIDTH,
     refine: bool | None = None,
+    noise: tuple[float, float] | None = None,
     seed: int = 0,
 ) -> Identification:
     """Fit `model`'s `unknown` parameters to the record `data` (see the module docstring).
@@ -126,6 +132,8 @@ def identify(
     span: samples per row of the momentum form (None: SPAN seconds).
     width: rate scale of the smooth Coulomb term tanh(q'/width).
     refine: simulation-error refinement (None: when some unknown enters nonlinearly).
+    noise: the sensors' noise std (positions, rates) where known; None estimates whether
+        there is noise (NOISY) and the rates' std (`_rate_noise`) from the record.
     """
     base_model = as_model(model)
     setting = friction_setting(base_model, friction)
@@ -136,18 +144,32 @@ def identify(
         if k in kind
     ]  # fmt: skip
     values = dict(full.parameters) | _given(full, given)
-    rec = _record(data, len(full.coordinates), len(full.inputs))
+    rec = _record(data, len(full.coordinates), len(full.inputs), noise)
     reg = Regressor(full, unknown)
     lin = list(reg.linear)
     p = np.array([values[k] for k in names])
     rows = _rows(reg, rec, p, window, span)
     b = estimate.base(_random_regressor(reg, rec, p, seed), estimate.preference(lin, full.units))
     fit = _fit(rows, lin, b, values, full)
+    fitted = _fitted(rows, rec, lin, b, fit)
     if refine is None:
         refine = bool(reg.nonlinear)
     if refine:
         fit = _refine(full, rec, fit, list(reg.nonlinear) + [lin[i] for i in b.independent])
-    return _result(base_model, full, setting, unknown, reg, b, fit)
+    out = _result(base_model, full, setting, unknown, reg, b, fit)
+    out.fitted = fitted
+    return out
+
+
+def _fitted(rows: Rows, rec: Record, lin, b, fit) -> dict:
+    theta = np.array([fit.theta[k] for k in lin])
+    times = rows.time.reshape(-1, rows.n_eq)[:, 0]
+    scale = (len(rec.t) - 1) / max(times.max() + 1, 1)
+    return {
+        "time": rec.t[0] + (times + 0.5) * scale * rec.h,
+        "measured": rows.y.reshape(-1, rows.n_eq),
+        "predicted": (rows.A @ theta).reshape(-1, rows.n_eq),
+    }
 
 
 # ---- arguments ---------------------------------------------------------------------------
@@ -188,9 +210,10 @@ class Record:
     qd: np.ndarray | None
     u: np.ndarray
     h: float
+    noise: tuple[float, float] | None = None
 
 
-def _record(data, n: int, nu: int) -> Record:
+def _record(data, n: int, nu: int, noise=None) -> Record:
     """The record's arrays, checked: shapes, finite values, uniform sampling."""
     if not hasattr(data, "__getitem__") or not hasattr(data, "keys"):
         raise TypeError(f"data must be a mapping with t, q, [qd,] u; got {type(data).__name__}.")
@@ -217,7 +240,11 @@ def _record(data, n: int, nu: int) -> Record:
     h = float(np.mean(dt))
     if not h > 0 or np.abs(dt - h).max() > 1e-6 * h:
         raise ValueError("data['t'] must be increasing with a uniform step (resample first).")
-    return Record(t, got["q"], got.get("qd"), got["u"], h)
+    if noise is not None:
+        noise = tuple(float(v) for v in noise)
+        if len(noise) != 2 or not all(v >= 0 and math.isfinite(v) for v in noise):
+            raise ValueError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
+    return Record(t, got["q"], got.get("qd"), got["u"], h, noise)
 
 
 # ---- rows of the regression --------------------------------------------------------------
@@ -241,6 +268,8 @@ def _noisy(rec: Record) -> bool:
     """Whether positions and rates disagree beyond integration error (see NOISY)."""
     if rec.qd is None:
         return True
+    if rec.noise is not None:
+        return max(rec.noise) > 0
     gap = rec.q[1:] - rec.q[:-1] - rec.h * (rec.qd[1:] + rec.qd[:-1]) / 2
     return bool(np.sqrt(np.mean(gap**2)) > NOISY * rec.h * np.sqrt(np.mean(rec.qd**2)))
 
@@ -250,7 +279,9 @@ def _signals(rec: Record, window: int | None, constrained: bool) -> tuple:
     h, noisy = rec.h, _noisy(rec)
     default = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
     if window is not None and window != 0 and (window % 2 == 0 or window <= POLYORDER):
-        raise ValueError(f"window must be 0 or an odd number of samples > {POLYORDER}, got {window}.")
+        raise ValueError(
+            f"window must be 0 or an odd number of samples > {POLYORDER}, got {window}."
+        )
     if rec.qd is None:
         w = window or default
         q = savgol_filter(rec.q, w, POLYORDER, axis=0)
@@ -319,8 +350,11 @@ def _rate_noise(reg, rec: Record, t, X, u, p, ends, span_s):
     n, h = reg.n_q, rec.h
     w = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
     c0 = savgol_coeffs(w, POLYORDER)[w // 2]
-    sigma = np.sqrt(np.mean((rec.qd - savgol_filter(rec.qd, w, POLYORDER, axis=0)) ** 2, 0))
-    sigma /= np.sqrt(1.0 - c0)
+    if rec.noise is not None:
+        sigma = np.full(n, rec.noise[1])
+    else:
+        sigma = np.sqrt(np.mean((rec.qd - savgol_filter(rec.qd, w, POLYORDER, axis=0)) ** 2, 0))
+        sigma /= np.sqrt(1.0 - c0)
     Xe, te, ue = X[ends], t[ends], u[ends]
     P, p0, _, _ = reg.momentum(te, Xe, ue, p)
     k = P.shape[2]

@@ -1,0 +1,97 @@
+"""Recording an exciting input on any Lagrange env, for `dynamics.identify`.
+
+The env is made with the plant's parameters (`gym.make(env_id, **plant)`) and stepped
+without its time limit; the excitation is a periodic multisine (`dynamics.excite`) in the
+env's action units, a `fraction` of the action range. An env that ends early under the
+open-loop input (a pole that falls past its failure angle) is recorded again under its
+task's LQR (designed on the env's own model) with the excitation added to its action: the
+regression uses the inputs applied, whatever produced them. Each row holds the state at
+the start of a control period and the model inputs applied over it (`info["input"]`),
+so the record is zero-order hold, as `identify` expects. Sensor noise (Gaussian, std
+`noise = (positions, rates)`) is added to the recorded states only.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from dynamics.excite import multisine
+
+from .common import UserError, lagrange_env
+
+
+def record(
+    env_id: str,
+    seconds: float = 20.0,
+    plant: dict | None = None,
+    noise: tuple[float, float] = (0.0, 0.0),
+    fraction: float = 0.5,
+    seed: int = 0,
+    feedback: str | None = None,
+) -> dict[str, np.ndarray]:
+    """A record {t, q, qd, u, ...} of `seconds` of excitation on `env_id` with `plant`
+    parameters. feedback: None (open loop, then LQR if the env ends early), "none" or
+    "lqr". Also returns the plant's parameters (`plant_names`, `plant_values`), the noise
+    and the env id, for the report."""
+    if not seconds > 0:
+        raise UserError(f"seconds must be positive, got {seconds}.")
+    if len(noise) != 2 or min(noise) < 0:
+        raise UserError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
+    env = lagrange_env(gym.make(env_id, **(plant or {})))
+    tries = [(feedback, fraction)] if feedback else [
+        ("none", fraction), ("none", fraction / 2), ("lqr", fraction / 2)]  # fmt: skip
+    modes = [m for m, _ in tries]
+    for mode, share in tries:
+        rec = _run(env, seconds, share, seed, mode)
+        if rec is not None:
+            break
+    else:
+        raise UserError(
+            f"{env_id} ended early under the excitation ({', '.join(modes)}); try a smaller "
+            "--fraction or a shorter record."
+        )
+    rng = np.random.default_rng(seed + 1)
+    n = env.system.n_q
+    rec["q"] = rec["q"] + noise[0] * rng.standard_normal(rec["q"].shape)
+    rec["qd"] = rec["qd"] + noise[1] * rng.standard_normal(rec["qd"].shape)
+    params = env.system.parameters
+    rec |= {
+        "plant_names": np.array(list(params)),
+        "plant_values": np.array(list(params.values())),
+        "noise": np.array(noise, dtype=float),
+        "env_id": np.array(env_id),
+        "feedback": np.array(mode),
+        "coordinates": np.array(env.system.coordinates[:n]),
+    }
+    return rec
+
+
+def _run(env, seconds: float, fraction: float, seed: int, mode: str):
+    """The record under `mode` ("none" or "lqr"), or None if the env ended early."""
+    h = float(env.control_period)
+    steps = int(round(seconds / h))
+    n_a = env.action_space.shape[0]
+    excite = multisine(np.ones(n_a), period=min(10.0, seconds / 2), fraction=fraction, seed=seed)
+    policy = None
+    if mode == "lqr":
+        if env.task.lqr is None:
+            return None
+        from .lqr_policy import LQRPolicy
+
+        policy = LQRPolicy(env)
+    obs, _ = env.reset(seed=seed)
+    X, U = [], []
+    for k in range(steps + 1):
+        action = excite(k * h)
+        if policy is not None:
+            action = action + policy.predict(obs)[0]
+        x = env.state
+        obs, _, terminated, _, info = env.step(np.clip(action, -1, 1).astype(np.float32))
+        X.append(x)
+        U.append(info["input"])
+        if terminated:
+            return None
+    X = np.array(X)
+    n = X.shape[1] // 2
+    return {"t": np.arange(len(X)) * h, "q": X[:, :n], "qd": X[:, n:], "u": np.array(U)}
