@@ -3,9 +3,10 @@
 The env is made with the plant's parameters (`gym.make(env_id, **plant)`) and stepped
 without its time limit; the excitation is a periodic multisine (`dynamics.excite`) in the
 env's action units, a `fraction` of the action range. An env that ends early under the
-open-loop input (a pole that falls past its failure angle) is recorded again under its
-task's LQR (designed on the env's own model) with the excitation added to its action: the
-regression uses the inputs applied, whatever produced them. Each row holds the state at
+open-loop input (a pole that falls past its failure angle) is recorded again with half the
+excitation, then under its task's LQR (designed on the env's own model) with the
+excitation added to its action: the regression uses the inputs applied, whatever produced
+them. If every try ends early, the longest record is kept when it lasts `MIN_SECONDS`. Each row holds the state at
 the start of a control period and the model inputs applied over it (`info["input"]`),
 so the record is zero-order hold, as `identify` expects. Sensor noise (Gaussian, std
 `noise = (positions, rates)`) is added to the recorded states only.
@@ -19,6 +20,9 @@ import numpy as np
 from dynamics.excite import multisine
 
 from .common import UserError, lagrange_env
+
+MIN_SECONDS = 5.0
+"""The shortest record kept when every try ends early."""
 
 
 def record(
@@ -40,17 +44,20 @@ def record(
         raise UserError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
     env = lagrange_env(gym.make(env_id, **(plant or {})))
     tries = [(feedback, fraction)] if feedback else [
-        ("none", fraction), ("none", fraction / 2), ("lqr", fraction / 2)]  # fmt: skip
-    modes = [m for m, _ in tries]
-    for mode, share in tries:
-        rec = _run(env, seconds, share, seed, mode)
-        if rec is not None:
+        ("none", fraction), ("none", fraction / 2), ("lqr", fraction)]  # fmt: skip
+    best, mode = None, None
+    for how, share in tries:
+        rec = _run(env, seconds, share, seed, how)
+        if rec is not None and (best is None or len(rec["t"]) > len(best["t"])):
+            best, mode = rec, how
+        if rec is not None and rec["t"][-1] >= seconds - 1e-9:
             break
-    else:
+    if best is None or best["t"][-1] < MIN_SECONDS:
         raise UserError(
-            f"{env_id} ended early under the excitation ({', '.join(modes)}); try a smaller "
-            "--fraction or a shorter record."
+            f"{env_id} ended within {MIN_SECONDS} s under every excitation tried "
+            f"({', '.join(m for m, _ in tries)}); try a smaller --fraction."
         )
+    rec = best
     rng = np.random.default_rng(seed + 1)
     n = env.system.n_q
     rec["q"] = rec["q"] + noise[0] * rng.standard_normal(rec["q"].shape)
@@ -68,7 +75,8 @@ def record(
 
 
 def _run(env, seconds: float, fraction: float, seed: int, mode: str):
-    """The record under `mode` ("none" or "lqr"), or None if the env ended early."""
+    """The record under `mode` ("none" or "lqr") up to the step before the env ended, or
+    None (no LQR for this task)."""
     h = float(env.control_period)
     steps = int(round(seconds / h))
     n_a = env.action_space.shape[0]
@@ -88,10 +96,12 @@ def _run(env, seconds: float, fraction: float, seed: int, mode: str):
             action = action + policy.predict(obs)[0]
         x = env.state
         obs, _, terminated, _, info = env.step(np.clip(action, -1, 1).astype(np.float32))
+        if terminated:
+            break
         X.append(x)
         U.append(info["input"])
-        if terminated:
-            return None
+    if len(X) < 2:
+        return {"t": np.zeros(1)}
     X = np.array(X)
     n = X.shape[1] // 2
     return {"t": np.arange(len(X)) * h, "q": X[:, :n], "qd": X[:, n:], "u": np.array(U)}

@@ -106,19 +106,20 @@ def scaled_lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     return sol / scale, cond
 
 
-def compensated(A, y, C=None, c=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def compensated(A, y, C=None, c=None):
     """(R, z, G): a square system R beta ~ z with the same least-squares solution and
     quadratic form as the normal equations G beta = A^T y - c, G = A^T A - C (C, c: the
     expected second moments of the noise in the rows, removed; `identify._rate_noise`),
-    R the Cholesky factor of G. Without C it is A, y themselves."""
+    R the Cholesky factor of G. Without C it is A, y themselves. None where G is not
+    positive definite: in some direction the record's noise is larger than its signal."""
     if C is None:
         return A, y, A.T @ A
     G = A.T @ A - C
     b = A.T @ y - c
     try:
         R = np.linalg.cholesky(G).T
-    except np.linalg.LinAlgError:  # the noise dominates the signal: no compensation
-        return A, y, A.T @ A
+    except np.linalg.LinAlgError:
+        return None
     return R, np.linalg.solve(R.T, b), G
 
 

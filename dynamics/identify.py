@@ -442,6 +442,7 @@ def _fit(rows: Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fi
     I, D, K = b.independent, b.dependent, b.K
     theta_D = np.array([values[lin[d]] for d in D])
     A, y = rows.A[:, I], rows.y  # A theta = A_I (theta_I + K theta_D) = A_I beta
+    violated: list[str] = []
 
     def noise(w_eq):
         if rows.noise is None:
@@ -451,13 +452,24 @@ def _fit(rows: Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fi
                 np.einsum("e,ek->k", w_eq**2, cy[:, I]))  # fmt: skip
 
     ones = np.ones(rows.n_eq)
-    beta, _ = estimate.scaled_lstsq(*estimate.compensated(A, y, *noise(ones))[:2])
+    first = estimate.compensated(A, y, *noise(ones))
+    if first is None:  # the noise outweighs the signal in some direction: fit as it is
+        violated.append("the record's rate noise exceeds its signal in some direction: "
+                        "no errors-in-variables compensation (expect estimates shrunk)")
+        first = (A, y, A.T @ A)
+        rows.noise = None
+    beta, _ = estimate.scaled_lstsq(*first[:2])
     r = y - A @ beta
     sigma = np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
     w_eq = 1.0 / np.maximum(sigma, 1e-12 * max(sigma.max(), 1e-300))
+    weighted = estimate.compensated(A * w_eq[rows.equation][:, None], y * w_eq[rows.equation],
+                                    *noise(w_eq))  # fmt: skip
+    if weighted is None:  # weighting made the noise outweigh a direction: equal weights
+        w_eq = ones
+        weighted = first
     w = w_eq[rows.equation]
     Aw, yw = A * w[:, None], y * w
-    R, z, gram = estimate.compensated(Aw, yw, *noise(w_eq))
+    R, z, gram = weighted
     beta, cond = estimate.scaled_lstsq(R, z)
 
     def theta_of(beta_):
@@ -465,8 +477,9 @@ def _fit(rows: Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fi
 
     lower = _lower(full, lin, values)
     bodies = estimate.bodies(list(values))
-    violated = estimate.violations(theta_of(beta), lower, bodies)
-    if violated:
+    unphysical = estimate.violations(theta_of(beta), lower, bodies)
+    violated += unphysical
+    if unphysical:
         lower_I = np.array([lower.get(lin[i], -np.inf) for i in I]) + K @ theta_D
         checks = _inertia_checks(bodies, theta_of) if any(
             set(axes.values()) & set(lin) for axes in bodies.values()

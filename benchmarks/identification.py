@@ -1,0 +1,182 @@
+"""Closing the loop: controllers redesigned on an identified model, on a plant they did not see.
+
+    python benchmarks/identification.py                      # every case, 100 episodes
+    python benchmarks/identification.py --cases Lagrange/TwoLinkArm-v1 --episodes 20
+
+For each case a hidden plant has some parameters off nominal by a factor at which the
+nominal model-based controller fails in the robustness benchmark (benchmarks/robustness.py,
+the README's table of where each falls below 50 %). The plant is recorded under an exciting
+input (`agents.recording`: 20 s, sensor noise std 1e-3 rad or m and 1e-2 per s), its
+inertial parameters are identified from the record (`dynamics.identify`, the model's other
+parameters as nominal), and the controller is designed again on the identified model
+(`gym.make(env_id, **identified)`). Both designs, and a design on the hidden plant's true
+parameters (the oracle: what a perfect identification would give), then run the same
+seeded episodes on the hidden plant. The actuators are the nominal env's throughout
+(`max_input`): where a task derives its input limits from the parameters (the arm's
+holding torques), a heavier plant must not get stronger motors. Writes results.md and
+results.json to --out, atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+
+from agents.common import check_env_id, write_atomic  # noqa: E402
+from agents.identify import fit  # noqa: E402
+from agents.recording import record  # noqa: E402
+from agents.report import wilson_interval  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Case:
+    env_id: str
+    controller: str  # "lqr" or "plan"
+    factors: dict  # parameter -> factor of the nominal value in the hidden plant
+    why: str  # where the robustness benchmark has the nominal design fail
+
+
+CASES = (
+    Case("Lagrange/TwoLinkArm-v1", "lqr", {"m2": 0.25}, "LQR below 50 % at m2 x 0.25"),
+    Case("Lagrange/Acrobot-v2", "plan", {"m1": 0.75}, "plan + TVLQR below 50 % at m1 x 0.75"),
+    Case("examples.cart_pole:Examples/CartPole-v0", "lqr", {"m_cart": 0.1},
+         "LQR 0 % at m_cart x 0.1"),
+    Case("examples.furuta:Examples/Furuta-v0", "lqr", {"J": 0.1}, "LQR 0 % at J x 0.1"),
+    Case("Lagrange/RollingDisk-v1", "lqr", {"I": 4.0}, "LQR below 50 % at I x 4"),
+)  # fmt: skip
+NOISE = (1e-3, 1e-2)
+
+
+def controller(kind: str, env_id: str, params: dict):
+    """A policy designed on `env_id` with `params` (the designer's model and actuators)."""
+    env = gym.make(env_id, **params)
+    if kind == "lqr":
+        from agents.lqr_policy import LQRPolicy
+
+        return LQRPolicy(env)
+    from agents.tvlqr import PlanPolicy
+
+    policy = PlanPolicy(env)
+    policy.RESET_TOLERANCE = np.inf  # the plant is not its model: new episodes by their start
+    return policy
+
+
+def successes(env_id: str, hidden: dict, policy, episodes: int, seed: int) -> np.ndarray:
+    """Success of one seeded episode per copy of the hidden plant under `policy`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        venv = gym.make_vec(env_id, episodes, vectorization_mode="vector_entry_point", **hidden)
+    obs, _ = venv.reset(seed=list(range(seed, seed + episodes)))
+    done = np.zeros(episodes, dtype=bool)
+    won = np.zeros(episodes, dtype=bool)
+    start = np.ones(episodes, dtype=bool)
+    while not done.all():
+        action, _ = policy.predict(obs, episode_start=start, deterministic=True)
+        obs, _, terminated, truncated, info = venv.step(action)
+        start[:] = False
+        ended = ~done & (terminated | truncated)
+        won[ended] = np.asarray(info["is_success"])[ended]
+        done |= ended
+    venv.close()
+    return won
+
+
+def run_case(case: Case, episodes: int, seed: int, log) -> dict:
+    env_id = check_env_id(case.env_id, lagrange=True)
+    env = gym.make(env_id).unwrapped
+    nominal = env.system.parameters
+    motors = {"max_input": [float(v) for v in env.max_input]}
+    hidden = {k: nominal[k] * f for k, f in case.factors.items()}
+    log(f"{env_id}: hidden plant {hidden}")
+    start = time.perf_counter()
+    data = record(env_id, 20.0, hidden | motors, NOISE, seed=seed)
+    record_s = time.perf_counter() - start
+    start = time.perf_counter()
+    result = fit(env_id, data)
+    identify_s = time.perf_counter() - start
+    truth = nominal | hidden
+    errors = {k: result.parameters[k] / truth[k] - 1 for k in result.unknown
+              if k in truth and k not in result.unidentifiable}  # fmt: skip
+    log(f"  recorded {data['t'][-1]:.1f} s ({data['feedback']}) in {record_s:.1f} s, "
+        f"identified in {identify_s:.2f} s; errors {', '.join(f'{k} {v:+.2%}' for k, v in errors.items())}")  # noqa: E501  # fmt: skip
+    row = dict(env_id=env_id, controller=case.controller, hidden=hidden, why=case.why,
+               recorded_s=float(data["t"][-1]), feedback=str(data["feedback"]),
+               identify_s=identify_s, errors=errors, identified=result.parameters)  # fmt: skip
+    designs = (("nominal", {}), ("identified", result.parameters), ("oracle", hidden))
+    for design, params in designs:
+        start = time.perf_counter()
+        policy = controller(case.controller, env_id, params | motors)
+        won = successes(env_id, hidden | motors, policy, episodes, seed)
+        ci = wilson_interval(int(won.sum()), episodes)
+        row[design] = dict(successes=int(won.sum()), n=episodes, low=ci.low, high=ci.high)
+        log(f"  {design} design: {won.mean():.0%} [{ci.low:.0%}, {ci.high:.0%}] "
+            f"({time.perf_counter() - start:.0f} s)")  # fmt: skip
+    return row
+
+
+def table(rows: list[dict]) -> str:
+    lines = [
+        "| env | controller | hidden plant | nominal design | identified design | oracle "
+        "design | largest parameter error | record | identify (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        def cell(d):
+            return f"{d['successes'] / d['n']:.0%} [{d['low']:.0%}, {d['high']:.0%}]"
+
+        worst = max(r["errors"].items(), key=lambda kv: abs(kv[1]))
+        hidden = ", ".join(f"{k} = {v:.4g}" for k, v in r["hidden"].items())
+        lines.append(
+            f"| {r['env_id']} | {r['controller']} | {hidden} | {cell(r['nominal'])} | "
+            f"{cell(r['identified'])} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | {r['recorded_s']:.0f} s, "
+            f"{r['feedback']} | {r['identify_s']:.2f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python benchmarks/identification.py",
+                                description=__doc__.split("\n\n")[1].replace("\n", " "))  # fmt: skip
+    p.add_argument("--cases", help="comma-separated env ids of CASES (default: all)")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="runs/identification")
+    args = p.parse_args(argv)
+    wanted = args.cases.split(",") if args.cases else None
+    cases = [c for c in CASES if wanted is None or c.env_id in wanted
+             or c.env_id.split(":")[-1] in wanted]  # fmt: skip
+    if not cases or args.episodes < 1:
+        raise SystemExit(f"--cases of {[c.env_id for c in CASES]}, --episodes >= 1")
+    log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
+    load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
+    start = time.perf_counter()
+    rows = [run_case(c, args.episodes, args.seed, log) for c in cases]
+    command = "python benchmarks/identification.py " + " ".join(sys.argv[1:] if argv is None
+                                                                 else argv)  # fmt: skip
+    when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    note = (f"\n`{command}`, {when}, {time.perf_counter() - start:.0f} s, load average "
+            f"{load} at the start, {os.cpu_count()} cores.\n")  # fmt: skip
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    text = table(rows) + note
+    write_atomic(out / "results.md", text)
+    write_atomic(out / "results.json", json.dumps(rows, indent=1, default=float))
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
