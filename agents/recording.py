@@ -6,10 +6,10 @@ env's action units, a `fraction` of the action range. An env that ends early und
 open-loop input (a pole that falls past its failure angle) is recorded again with half the
 excitation, then under its task's LQR (designed on the env's own model) with the
 excitation added to its action: the regression uses the inputs applied, whatever produced
-them. If every try ends early, the longest record is kept when it lasts `MIN_SECONDS`. Each row holds the state at
-the start of a control period and the model inputs applied over it (`info["input"]`),
-so the record is zero-order hold, as `identify` expects. Sensor noise (Gaussian, std
-`noise = (positions, rates)`) is added to the recorded states only.
+them. If every try ends early, the longest record is kept when it lasts `MIN_SECONDS`.
+Each row holds the state at the start of a control period and the model inputs applied
+over it (`info["input"]`), so the record is zero-order hold, as `identify` expects. Sensor
+noise (Gaussian, std `noise = (positions, rates)`) is added to the recorded states only.
 """
 
 from __future__ import annotations

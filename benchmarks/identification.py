@@ -141,15 +141,15 @@ def table(rows: list[dict]) -> str:
         hidden = ", ".join(f"{k} = {v:.4g}" for k, v in r["hidden"].items())
         lines.append(
             f"| {r['env_id']} | {r['controller']} | {hidden} | {cell(r['nominal'])} | "
-            f"{cell(r['identified'])} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | {r['recorded_s']:.0f} s, "
-            f"{r['feedback']} | {r['identify_s']:.2f} |"
+            f"{cell(r['identified'])} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | "
+            f"{r['recorded_s']:.0f} s, {r['feedback']} | {r['identify_s']:.2f} |"
         )
     return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python benchmarks/identification.py",
-                                description=__doc__.split("\n\n")[1].replace("\n", " "))  # fmt: skip
+    about = __doc__.split("\n\n")[1].replace("\n", " ")
+    p = argparse.ArgumentParser(prog="python benchmarks/identification.py", description=about)
     p.add_argument("--cases", help="comma-separated env ids of CASES (default: all)")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
