@@ -36,16 +36,18 @@ def model_of(env_id: str):
     return as_model(task_of(env_id).model)
 
 
-def _assignments(items, label: str) -> dict[str, float]:
+def _assignments(items, label: str) -> dict:
+    """NAME=VALUE pairs; VALUE a number, or numbers separated by commas (a list)."""
     out = {}
     for item in items or []:
-        name, sep, value = item.partition("=")
+        name, sep, text = item.partition("=")
         try:
-            out[name] = float(value)
+            values = [float(v) for v in text.split(",")]
         except ValueError:
-            raise UserError(f"{label} takes NAME=VALUE with a number, got {item!r}.") from None
-        if not sep or not name or not math.isfinite(out[name]):
-            raise UserError(f"{label} takes NAME=VALUE with a finite number, got {item!r}.")
+            values = []
+        if not sep or not name or not values or not all(map(math.isfinite, values)):
+            raise UserError(f"{label} takes NAME=VALUE with finite numbers, got {item!r}.")
+        out[name] = values[0] if len(values) == 1 else values
     return out
 
 

@@ -23,6 +23,10 @@ from .common import UserError, lagrange_env
 
 MIN_SECONDS = 5.0
 """The shortest record kept when every try ends early."""
+CLOSED_LOOP_PERIOD = 2.0
+"""Period (s) of the excitation under feedback: its harmonics from 0.5 Hz up, above what
+LQR cancels (at a 10 s period, the cart-pole's LQR cancelled the excitation to an input std
+of 2 % of the range, and the record told its masses only to +-100 %)."""
 
 
 def record(
@@ -80,7 +84,8 @@ def _run(env, seconds: float, fraction: float, seed: int, mode: str):
     h = float(env.control_period)
     steps = int(round(seconds / h))
     n_a = env.action_space.shape[0]
-    excite = multisine(np.ones(n_a), period=min(10.0, seconds / 2), fraction=fraction, seed=seed)
+    period = min(10.0 if mode == "none" else CLOSED_LOOP_PERIOD, seconds / 2)
+    excite = multisine(np.ones(n_a), period=period, fraction=fraction, seed=seed)
     policy = None
     if mode == "lqr":
         if env.task.lqr is None:

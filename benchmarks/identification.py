@@ -55,7 +55,7 @@ CASES = (
     Case("examples.cart_pole:Examples/CartPole-v0", "lqr", {"m_cart": 0.1},
          "LQR 0 % at m_cart x 0.1"),
     Case("examples.furuta:Examples/Furuta-v0", "lqr", {"J": 0.1}, "LQR 0 % at J x 0.1"),
-    Case("Lagrange/RollingDisk-v1", "lqr", {"I": 4.0}, "LQR below 50 % at I x 4"),
+    Case("Lagrange/RollingDisk-v1", "lqr", {"I": 0.25}, "LQR below 50 % at I x 0.25"),
 )  # fmt: skip
 NOISE = (1e-3, 1e-2)
 

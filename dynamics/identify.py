@@ -320,9 +320,10 @@ def _rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
     mid = _midpoints(q, qd, h, hermite=not noisy and w == 0)
     lag = int(np.ceil(w / max(span or 1, 1))) + 1
     if constrained:
-        rows = _acceleration_rows(reg, t[:-1] + h / 2, mid, (qd[1:] - qd[:-1]) / h, u[:-1], p, w)
+        qdd = (qd[1:] - qd[:-1]) / h
+        rows = _acceleration_rows(reg, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
         if noisy and rec.qd is not None:
-            rows.noise = _acceleration_noise(reg, rec, t[:-1] + h / 2, mid, u[:-1], p, w)
+            rows.noise = _acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
         return rows
     L = span or max(1, int(round(SPAN / h)))
     n_win = (len(t) - 1) // L
@@ -384,31 +385,48 @@ def _rate_sigma(rec: Record) -> np.ndarray:
     return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
 
 
-def _acceleration_noise(reg, rec: Record, T, X, U, p, w: int):
+def _acceleration_noise(reg, rec: Record, T, X, QDD, U, p, w: int):
     """Second moments of the rate noise in the acceleration rows (as `_rate_noise` for the
-    momentum form): q'' = (s(t1) - s(t0)) / h of the rates smoothed by the filter with
-    weights c (window w, or none) carries noise of variance sigma^2 sum (c_j - c_(j-1))^2 /
-    h^2, and the rows are linear in q''."""
+    momentum form). With the rates smoothed by a filter of weights c (window w, or none),
+    q'' = (s(t1) - s(t0)) / h carries noise of variance sigma^2 sum (c_j - c_(j-1))^2 / h^2
+    and the midpoint rate (s(t0) + s(t1)) / 2 noise of variance sigma^2 sum ((c_j +
+    c_(j-1)) / 2)^2, uncorrelated with the first (stationary noise). The rows are linear in
+    q'' and, through the gyroscopic and centripetal terms, depend on the rates: both enter
+    by their Jacobians (the rates' by central differences)."""
     from scipy.signal import savgol_coeffs
 
     c = savgol_coeffs(w, POLYORDER) if w else np.ones(1)
-    gain = np.sum(np.diff(np.concatenate([[0.0], c, [0.0]])) ** 2) / rec.h**2
-    var = _rate_sigma(rec) ** 2 * gain
+    padded = np.concatenate([[0.0], c, [0.0]])
+    sigma2 = _rate_sigma(rec) ** 2
+    var_qdd = sigma2 * np.sum(np.diff(padded) ** 2) / rec.h**2
+    var_qd = sigma2 * np.sum(((padded[1:] + padded[:-1]) / 2) ** 2)
     n = reg.n_q
-    zero = np.zeros((len(T), n))
-    Y0, y00 = reg.acceleration(T, X, zero, U, p)
     B, _, _ = reg.constraints(T, X, p)
     Nsp = _null_spaces(B)
-    r, k = Nsp.shape[2], Y0.shape[2]
+
+    def projected(Xa, QDDa):
+        Y, y0 = reg.acceleration(T, Xa, QDDa, U, p)
+        return np.einsum("bnr,bnk->brk", Nsp, Y), -np.einsum("bnr,bn->br", Nsp, y0)
+
+    zero = np.zeros_like(QDD)
+    A0, b0 = projected(X, zero)
+    r, k = A0.shape[1], A0.shape[2]
     CA, cy = np.zeros((r, k, k)), np.zeros((r, k))
     for i in range(n):
         e = zero.copy()
         e[:, i] = 1.0
-        Yi, yi = reg.acceleration(T, X, e, U, p)
-        J = np.einsum("bnr,bnk->brk", Nsp, Yi - Y0)
-        j0 = -np.einsum("bnr,bn->br", Nsp, yi - y00)
-        CA += var[i] * np.einsum("brk,brl->rkl", J, J)
-        cy += var[i] * np.einsum("brk,br->rk", J, j0)
+        Ai, bi = projected(X, e)
+        J, j0 = Ai - A0, bi - b0
+        CA += var_qdd[i] * np.einsum("brk,brl->rkl", J, J)
+        cy += var_qdd[i] * np.einsum("brk,br->rk", J, j0)
+        step = 1e-4 * max(1.0, float(np.abs(X[:, n + i]).max()))
+        Xp, Xm = X.copy(), X.copy()
+        Xp[:, n + i] += step
+        Xm[:, n + i] -= step
+        (Ap, bp), (Am, bm) = projected(Xp, QDD), projected(Xm, QDD)
+        J, j0 = (Ap - Am) / (2 * step), (bp - bm) / (2 * step)
+        CA += var_qd[i] * np.einsum("brk,brl->rkl", J, J)
+        cy += var_qd[i] * np.einsum("brk,br->rk", J, j0)
     return CA, cy
 
 
