@@ -12,26 +12,31 @@ can determine (`dynamics.estimate`), with optional friction columns.
 The record. `t` (T,) uniformly sampled, `q` (T, n), optional `qd` (T, n), `u` (T, n_u) in
 the model's input order, each input held from its sample to the next (zero-order hold, as
 an env steps; the last row's input is not used). Without `qd`, the rates are the
-Savitzky-Golay derivative of `q` (`scipy.signal.savgol_filter`, cubic, a `window` of 0.1 s
-unless given). With `qd`, a record whose positions and rates disagree beyond integration
-error (`NOISY`) is smoothed by the same filter, inputs too (a linear filter applied to both
-sides of the equations keeps them paired); `window=0` never smooths.
+Savitzky-Golay derivative of `q` (`scipy.signal.savgol_filter`, cubic, a `window` of
+`regression.WINDOW` s unless given). A record is noisy when `noise` says so, or, without
+it, when its positions and rates disagree beyond integration error (`regression.NOISY`).
 
-The rows. Unconstrained models: Lagrange's equations integrated over windows of `span`
-samples (default 0.1 s), p(x_end) - p(x_start) = integral of g, the integral by Simpson's
-rule on each sampling interval with the midpoint state from cubic Hermite interpolation of
-(q, q') at its ends (errors of order h^4: noise-free records fit to about 1e-8, with no
-differentiation of the data). Constrained models: M q'' - F at each interval's midpoint,
-with q'' = (q'(t1) - q'(t0)) / h, projected on the null space of the constraint matrix B
-(N^T B^T lambda = 0 removes the unknown constraint forces).
+The rows (`dynamics.regression`). Unconstrained models: Lagrange's equations integrated
+over windows of `span` samples (default 0.1 s), p(x_end) - p(x_start) = integral of g, the
+integral by Simpson's rule on each sampling interval with the midpoint state from cubic
+Hermite interpolation of (q, q') at its ends: errors of order (omega h)^4, noise-free
+records fit to about 1e-7, and noise is averaged over the window, never differentiated.
+Constrained models: M q'' - F at each interval's midpoint, with q'' = (q'(t1) - q'(t0)) / h,
+projected on the null space of the constraint matrix B (N^T B^T lambda = 0 removes the
+unknown constraint forces); a noisy record's signals, inputs too (a linear filter applied
+to both sides keeps them paired), are smoothed over `regression.SMOOTH` s first
+(`window=0` never smooths). Rate noise in the rows would shrink the estimates (errors in
+variables): its expected second moments are computed from the rates' noise std (given, or
+estimated) and removed from the normal equations.
 
 The fit. Weighted least squares (each equation weighted by the inverse rms of its
-residual in a first unweighted fit), standard errors by the Newey-West sandwich
+residual in a first unweighted fit, unless that weighting lets the noise outweigh the
+signal in some direction), standard errors by the Newey-West sandwich
 (`estimate.hac_covariance`); when the estimates are not physical (a mass, moment or friction
 coefficient below zero; a body's full inertia not positive definite or against the triangle
 inequality), the fit is repeated with those constraints. Unknowns that enter nonlinearly
 are held at their given values in the linear fit, then every estimated parameter is
-refined by simulation error (multiple shooting over `SEGMENT` s, `scipy.optimize.least_squares`).
+refined by simulation error (multiple shooting over `SEGMENT` s, scipy `least_squares`).
 Parameters the data cannot determine are held at their given values and listed in
 `unidentifiable` with the combination they enter through; they are never estimated.
 """
@@ -39,13 +44,13 @@ Parameters the data cannot determine are held at their given values and listed i
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import savgol_filter
 
-from . import estimate
+from . import estimate, regression
+from .regression import POLYORDER
 from .regressor import (
     COULOMB_WIDTH,
     Regressor,
@@ -56,23 +61,8 @@ from .regressor import (
     with_friction,
 )
 
-WINDOW = 0.1
-"""Savitzky-Golay window (s) for rates from positions when none is given."""
-SMOOTH = 0.3
-"""Savitzky-Golay window (s) of a noisy record's accelerations (constrained models) when
-none is given: the noise of (s(t1) - s(t0)) / h falls as the window's -3/2 power; on the
-rolling disk (sensor noise 1e-2 rad/s) 0.1 s left the rates' noise above the signal of
-some combinations, 0.3 s fitted within 1.2 %."""
-SPAN = 0.1
-"""Integration window (s) of a row of the momentum form."""
-NOISY = 1e-2
-"""Rms of q(t1) - q(t0) - h (q'(t0) + q'(t1)) / 2 over that of h q' above which a record is
-taken to carry measurement noise (noise-free records at 100 Hz: about 1e-4 or less)."""
-RANDOM_STATES = 200
-"""States on which the base parameters are found."""
 SEGMENT = 0.5
 """Length (s) of a simulation-error segment (multiple shooting)."""
-POLYORDER = 3
 
 
 @dataclass
@@ -133,12 +123,12 @@ def identify(
     friction: None, "all", or {coordinate: "viscous" | "coulomb" | "viscous+coulomb"}.
     given: values of the other parameters (default the model's), and the values the
         unidentifiable and nonlinear unknowns start from.
-    window: Savitzky-Golay window in samples (odd; 0: no smoothing; None: see NOISY).
-    span: samples per row of the momentum form (None: SPAN seconds).
+    window: Savitzky-Golay window in samples (odd; 0: no smoothing; None: see above).
+    span: samples per row of the momentum form (None: `regression.SPAN` seconds).
     width: rate scale of the smooth Coulomb term tanh(q'/width).
     refine: simulation-error refinement (None: when some unknown enters nonlinearly).
     noise: the sensors' noise std (positions, rates) where known; None estimates whether
-        there is noise (NOISY) and the rates' std (`_rate_noise`) from the record.
+        there is noise (`regression.NOISY`) and the rates' std (`regression.rate_sigma`).
     """
     base_model = as_model(model)
     setting = friction_setting(base_model, friction)
@@ -149,12 +139,13 @@ def identify(
         if k in kind
     ]  # fmt: skip
     values = dict(full.parameters) | _given(full, given)
-    rec = _record(data, len(full.coordinates), len(full.inputs), noise)
+    rec = regression.check_record(data, len(full.coordinates), len(full.inputs), noise)
     reg = Regressor(full, unknown)
     lin = list(reg.linear)
     p = np.array([values[k] for k in names])
-    rows = _rows(reg, rec, p, window, span)
-    b = estimate.base(_random_regressor(reg, rec, p, seed), estimate.preference(lin, full.units))
+    rows = regression.build_rows(reg, rec, p, window, span)
+    W = regression.random_regressor(reg, rec, p, seed)
+    b = estimate.base(W, estimate.preference(lin, full.units))
     fit = _fit(rows, lin, b, values, full)
     fitted = _fitted(rows, rec, lin, b, fit)
     if refine is None:
@@ -166,7 +157,7 @@ def identify(
     return out
 
 
-def _fitted(rows: Rows, rec: Record, lin, b, fit) -> dict:
+def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
     theta = np.array([fit.theta[k] for k in lin])
     times = rows.time.reshape(-1, rows.n_eq)[:, 0]
     scale = (len(rec.t) - 1) / max(times.max() + 1, 1)
@@ -208,270 +199,6 @@ def _given(model, given) -> dict[str, float]:
     return {k: float(v) for k, v in given.items()}
 
 
-@dataclass(frozen=True)
-class Record:
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray | None
-    u: np.ndarray
-    h: float
-    noise: tuple[float, float] | None = None
-
-
-def _record(data, n: int, nu: int, noise=None) -> Record:
-    """The record's arrays, checked: shapes, finite values, uniform sampling."""
-    if not hasattr(data, "__getitem__") or not hasattr(data, "keys"):
-        raise TypeError(f"data must be a mapping with t, q, [qd,] u; got {type(data).__name__}.")
-    missing = [k for k in ("t", "q", "u") if k not in data.keys()]
-    if missing:
-        raise ValueError(f"data: missing {', '.join(missing)} (needs t, q, [qd,] u).")
-    t = np.asarray(data["t"], dtype=float)
-    T = len(t)
-    arrays = {"q": (T, n), "u": (T, nu)} | ({"qd": (T, n)} if "qd" in data.keys() else {})
-    got = {}
-    for key, shape in arrays.items():
-        a = np.asarray(data[key], dtype=float)
-        if a.ndim == 1 and shape[1] == 1:
-            a = a[:, None]
-        if a.shape != shape:
-            raise ValueError(f"data[{key!r}]: expected shape {shape}, got {a.shape}.")
-        got[key] = a
-    if t.ndim != 1 or T < 20:
-        raise ValueError(f"data['t']: expected at least 20 samples in one axis, got {t.shape}.")
-    for key, a in [("t", t), *got.items()]:
-        if not np.isfinite(a).all():
-            raise ValueError(f"data[{key!r}] contains NaN or inf.")
-    dt = np.diff(t)
-    h = float(np.mean(dt))
-    if not h > 0 or np.abs(dt - h).max() > 1e-6 * h:
-        raise ValueError("data['t'] must be increasing with a uniform step (resample first).")
-    if noise is not None:
-        noise = tuple(float(v) for v in noise)
-        if len(noise) != 2 or not all(v >= 0 and math.isfinite(v) for v in noise):
-            raise ValueError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
-    return Record(t, got["q"], got.get("qd"), got["u"], h, noise)
-
-
-# ---- rows of the regression --------------------------------------------------------------
-@dataclass
-class Rows:
-    """The stacked regression A theta = y: rows with their equation and time indices."""
-
-    A: np.ndarray  # (R, k)
-    y: np.ndarray  # (R,)
-    equation: np.ndarray  # (R,) int: the equation (coordinate, or projected equation)
-    time: np.ndarray  # (R,) int: the window or interval
-    lag: int  # neighbouring times whose residuals correlate
-    to_coordinates: np.ndarray | None  # (times, n, n - m): projected -> coordinates
-    n_eq: int
-    # per equation: E[a a^T] and E[a e] of the rate noise in a row (a: its regressor noise,
-    # e: its target noise), summed over the equation's rows; None for a noise-free record
-    noise: tuple | None = None
-
-
-def _noisy(rec: Record) -> bool:
-    """Whether positions and rates disagree beyond integration error (see NOISY)."""
-    if rec.qd is None:
-        return True
-    if rec.noise is not None:
-        return max(rec.noise) > 0
-    gap = rec.q[1:] - rec.q[:-1] - rec.h * (rec.qd[1:] + rec.qd[:-1]) / 2
-    return bool(np.sqrt(np.mean(gap**2)) > NOISY * rec.h * np.sqrt(np.mean(rec.qd**2)))
-
-
-def _signals(rec: Record, window: int | None, constrained: bool) -> tuple:
-    """(q, qd, u, window used, noisy): the signals the rows are built from."""
-    h, noisy = rec.h, _noisy(rec)
-    default = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
-    if window is not None and window != 0 and (window % 2 == 0 or window <= POLYORDER):
-        raise ValueError(
-            f"window must be 0 or an odd number of samples > {POLYORDER}, got {window}."
-        )
-    if rec.qd is None:
-        w = window or default
-        q = savgol_filter(rec.q, w, POLYORDER, axis=0)
-        qd = savgol_filter(rec.q, w, POLYORDER, deriv=1, delta=h, axis=0)
-        return q, qd, savgol_filter(rec.u, w, POLYORDER, axis=0), w, noisy
-    if window is None:  # the momentum form averages noise itself; accelerations need it
-        smooth = max(2 * int(round(SMOOTH / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
-        window = smooth if (noisy and constrained) else 0
-    if window == 0:
-        return rec.q, rec.qd, rec.u, 0, noisy
-    smooth = [savgol_filter(a, window, POLYORDER, axis=0) for a in (rec.q, rec.qd, rec.u)]
-    return *smooth, window, noisy
-
-
-def _midpoints(q, qd, h, hermite: bool):
-    """States at the intervals' midpoints: cubic Hermite from both ends (rates by its
-    derivative where the record is exact, by the mean of the ends where it is noisy)."""
-    qm = (q[:-1] + q[1:]) / 2 + h * (qd[:-1] - qd[1:]) / 8
-    if hermite:
-        qdm = 1.5 * (q[1:] - q[:-1]) / h - (qd[:-1] + qd[1:]) / 4
-    else:
-        qdm = (qd[:-1] + qd[1:]) / 2
-    return np.hstack([qm, qdm])
-
-
-def _rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
-    constrained = reg._m.N_C > 0
-    q, qd, u, w, noisy = _signals(rec, window, constrained)
-    h, t = rec.h, rec.t
-    X = np.hstack([q, qd])
-    mid = _midpoints(q, qd, h, hermite=not noisy and w == 0)
-    lag = int(np.ceil(w / max(span or 1, 1))) + 1
-    if constrained:
-        qdd = (qd[1:] - qd[:-1]) / h
-        rows = _acceleration_rows(reg, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
-        if noisy and rec.qd is not None:
-            rows.noise = _acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
-        return rows
-    L = span or max(1, int(round(SPAN / h)))
-    n_win = (len(t) - 1) // L
-    if n_win < 2:
-        raise ValueError(f"data: {len(t)} samples make fewer than 2 windows of {L}.")
-    k = slice(0, n_win * L)
-    P, p0, G0, g0 = reg.momentum(t, X, u, p)
-    _, _, G1, g1 = reg.momentum(t[1:], X[1:], u[:-1], p)
-    _, _, Gm, gm = reg.momentum(t[:-1] + h / 2, mid, u[:-1], p)
-    IG = h / 6 * (G0[:-1] + 4 * Gm + G1)[k]
-    Ig = h / 6 * (g0[:-1] + 4 * gm + g1)[k]
-    n, nk = P.shape[1], P.shape[2]
-    ends = np.arange(0, n_win + 1) * L
-    A = (P[ends[1:]] - P[ends[:-1]] - IG.reshape(n_win, L, n, nk).sum(1)) / (L * h)
-    y = -(p0[ends[1:]] - p0[ends[:-1]] - Ig.reshape(n_win, L, n).sum(1)) / (L * h)
-    eq = np.tile(np.arange(n), n_win)
-    time = np.repeat(np.arange(n_win), n)
-    noise = _rate_noise(reg, rec, t, X, u, p, ends, L * h) if noisy and w == 0 else None
-    return Rows(A.reshape(-1, nk), y.reshape(-1), eq, time, lag, None, n, noise)
-
-
-def _rate_noise(reg, rec: Record, t, X, u, p, ends, span_s):
-    """Second moments of the rate noise in the momentum rows, for bias compensation.
-
-    A row's regressor and target hold the momenta at the window's ends, which are linear in
-    the measured rates: noise n of std sigma_i in rate i puts J_i n into the row
-    (J_i = dP/dqd_i, and dp0/dqd_i in the target), so least squares on noisy rows
-    converges to (A^T A + E[N^T N])^-1 (A^T y + E[N^T e]), shrunk towards zero (errors in
-    variables). The fit subtracts these expectations. sigma_i is estimated from the record
-    (the rate's rms departure from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the
-    filter's centre weight)."""
-    n = reg.n_q
-    sigma = _rate_sigma(rec)
-    Xe, te, ue = X[ends], t[ends], u[ends]
-    P, p0, _, _ = reg.momentum(te, Xe, ue, p)
-    k = P.shape[2]
-    CA, cy = np.zeros((n, k, k)), np.zeros((n, k))
-    for i in range(n):
-        Xi = Xe.copy()
-        Xi[:, n + i] += 1.0
-        Pi, pi0, _, _ = reg.momentum(te, Xi, ue, p)
-        J, j0 = (Pi - P) / span_s, -(pi0 - p0) / span_s  # per end: (ends, n, k), (ends, n)
-        both = [slice(1, None), slice(None, -1)]  # every window has an end and a start
-        for sl in both:
-            CA += sigma[i] ** 2 * np.einsum("bek,bel->ekl", J[sl], J[sl])
-            cy += sigma[i] ** 2 * np.einsum("bek,be->ek", J[sl], j0[sl])
-    return CA, cy
-
-
-def _rate_sigma(rec: Record) -> np.ndarray:
-    """The rates' noise std: given, or estimated (see `_rate_noise`)."""
-    from scipy.signal import savgol_coeffs
-
-    if rec.noise is not None:
-        return np.full(rec.q.shape[1], rec.noise[1])
-    w = max(2 * int(round(WINDOW / rec.h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
-    c0 = savgol_coeffs(w, POLYORDER)[w // 2]
-    r = rec.qd - savgol_filter(rec.qd, w, POLYORDER, axis=0)
-    return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
-
-
-def _acceleration_noise(reg, rec: Record, T, X, QDD, U, p, w: int):
-    """Second moments of the rate noise in the acceleration rows (as `_rate_noise` for the
-    momentum form). With the rates smoothed by a filter of weights c (window w, or none),
-    q'' = (s(t1) - s(t0)) / h carries noise of variance sigma^2 sum (c_j - c_(j-1))^2 / h^2
-    and the midpoint rate (s(t0) + s(t1)) / 2 noise of variance sigma^2 sum ((c_j +
-    c_(j-1)) / 2)^2, uncorrelated with the first (stationary noise). The rows are linear in
-    q'' and, through the gyroscopic and centripetal terms, depend on the rates: both enter
-    by their Jacobians (the rates' by central differences)."""
-    from scipy.signal import savgol_coeffs
-
-    c = savgol_coeffs(w, POLYORDER) if w else np.ones(1)
-    padded = np.concatenate([[0.0], c, [0.0]])
-    sigma2 = _rate_sigma(rec) ** 2
-    var_qdd = sigma2 * np.sum(np.diff(padded) ** 2) / rec.h**2
-    var_qd = sigma2 * np.sum(((padded[1:] + padded[:-1]) / 2) ** 2)
-    n = reg.n_q
-    B, _, _ = reg.constraints(T, X, p)
-    Nsp = _null_spaces(B)
-
-    def projected(Xa, QDDa):
-        Y, y0 = reg.acceleration(T, Xa, QDDa, U, p)
-        return np.einsum("bnr,bnk->brk", Nsp, Y), -np.einsum("bnr,bn->br", Nsp, y0)
-
-    zero = np.zeros_like(QDD)
-    A0, b0 = projected(X, zero)
-    r, k = A0.shape[1], A0.shape[2]
-    CA, cy = np.zeros((r, k, k)), np.zeros((r, k))
-    for i in range(n):
-        e = zero.copy()
-        e[:, i] = 1.0
-        Ai, bi = projected(X, e)
-        J, j0 = Ai - A0, bi - b0
-        CA += var_qdd[i] * np.einsum("brk,brl->rkl", J, J)
-        cy += var_qdd[i] * np.einsum("brk,br->rk", J, j0)
-        step = 1e-4 * max(1.0, float(np.abs(X[:, n + i]).max()))
-        Xp, Xm = X.copy(), X.copy()
-        Xp[:, n + i] += step
-        Xm[:, n + i] -= step
-        (Ap, bp), (Am, bm) = projected(Xp, QDD), projected(Xm, QDD)
-        J, j0 = (Ap - Am) / (2 * step), (bp - bm) / (2 * step)
-        CA += var_qd[i] * np.einsum("brk,brl->rkl", J, J)
-        cy += var_qd[i] * np.einsum("brk,br->rk", J, j0)
-    return CA, cy
-
-
-def _null_spaces(B: np.ndarray) -> np.ndarray:
-    """(N, n, n - m): orthonormal bases of the null spaces of B (N, m, n)."""
-    m = B.shape[1]
-    _, _, Vt = np.linalg.svd(B)
-    return np.swapaxes(Vt[:, m:, :], 1, 2)
-
-
-def _acceleration_rows(reg, T, X, QDD, U, p, w) -> Rows:
-    Y, y0 = reg.acceleration(T, X, QDD, U, p)
-    B, _, _ = reg.constraints(T, X, p)
-    Nsp = _null_spaces(B)
-    A = np.einsum("bnr,bnk->brk", Nsp, Y)
-    y = -np.einsum("bnr,bn->br", Nsp, y0)
-    times, r = A.shape[0], A.shape[1]
-    eq = np.tile(np.arange(r), times)
-    time = np.repeat(np.arange(times), r)
-    return Rows(A.reshape(-1, A.shape[2]), y.reshape(-1), eq, time, max(w, 1), Nsp, r)
-
-
-def _random_regressor(reg: Regressor, rec: Record, p, seed: int) -> np.ndarray:
-    """The (projected) acceleration form on random states spanning the record's range."""
-    rng = np.random.default_rng(seed)
-    S, n = RANDOM_STATES, reg.n_q
-    lo, hi = rec.q.min(0), rec.q.max(0)
-    spread = np.maximum(hi - lo, 1e-3 * np.maximum(np.abs(hi), 1.0))
-    q = lo + (hi - lo) / 2 + spread * (rng.random((S, n)) - 0.5)
-    qd = rng.normal(size=(S, n))
-    qdd = rng.normal(size=(S, n))
-    T = rec.t[0] + (rec.t[-1] - rec.t[0]) * rng.random(S)
-    U = rng.normal(size=(S, reg.n_u)) * (1.0 + rec.u.std(0))
-    if reg._m.N_C:
-        B, b, _ = reg.constraints(T, np.hstack([q, qd]), p)
-        Nsp = _null_spaces(B)
-        qd = np.einsum("bnr,bmr,bm->bn", Nsp, Nsp, qd)
-        qd -= np.einsum("bnm,bm->bn", np.linalg.pinv(B), b)
-        B, _, gamma = reg.constraints(T, np.hstack([q, qd]), p)
-        qdd = np.einsum("bnr,bmr,bm->bn", Nsp, Nsp, qdd)
-        qdd += np.einsum("bnm,bm->bn", np.linalg.pinv(B), gamma)
-    rows = _acceleration_rows(reg, T, np.hstack([q, qd]), qdd, U, p, 1)
-    return rows.A
-
-
 # ---- the fit -----------------------------------------------------------------------------
 @dataclass
 class Fit:
@@ -497,7 +224,7 @@ def _lower(full, names: list[str], values: dict) -> dict[str, float]:
     return out
 
 
-def _fit(rows: Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fit:
+def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fit:
     I, D, K = b.independent, b.dependent, b.K
     theta_D = np.array([values[lin[d]] for d in D])
     A, y = rows.A[:, I], rows.y  # A theta = A_I (theta_I + K theta_D) = A_I beta
@@ -563,7 +290,7 @@ def _inertia_checks(bodies: dict, theta_of):
     return checks
 
 
-def _residual_rms(rows: Rows, r: np.ndarray) -> np.ndarray:
+def _residual_rms(rows: regression.Rows, r: np.ndarray) -> np.ndarray:
     """Rms residual per coordinate (projected residuals mapped back by the null spaces)."""
     if rows.to_coordinates is None:
         return np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
@@ -572,7 +299,7 @@ def _residual_rms(rows: Rows, r: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(coords**2, axis=0))
 
 
-def _refine(model, rec: Record, fit: Fit, names: list[str]) -> Fit:
+def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
     """Every parameter in `names` refitted by simulation error: the model stepped from the
     record's states over segments of SEGMENT s with the recorded inputs, its positions
     against the record's (multiple shooting), by `scipy.optimize.least_squares`."""
