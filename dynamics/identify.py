@@ -63,6 +63,10 @@ from .regressor import (
 
 SEGMENT = 0.5
 """Length (s) of a simulation-error segment (multiple shooting)."""
+FLAT = 1e-6
+"""A singular value of the simulation error's Jacobian below this times the largest marks
+a direction the record does not determine (noise-free, the arm's (m1, l1, Ibar1) family
+with the first and second moments m1 l1, Ibar1 + m1 l1^2 fixed: about 1e-9)."""
 
 
 @dataclass
@@ -209,6 +213,7 @@ class Fit:
     residual_rms: np.ndarray  # per coordinate
     condition: float
     violated: list[str]
+    weak: dict = field(default_factory=dict)  # name -> why (refinement's flat directions)
 
 
 def _lower(full, names: list[str], values: dict) -> dict[str, float]:
@@ -335,9 +340,22 @@ def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
     dof = max(sol.fun.size - len(z0), 1)
     cov = np.linalg.pinv(J.T @ J) * (sol.fun @ sol.fun) / dof
     std = np.sqrt(np.maximum(np.diag(cov), 0.0)) * zscale
-    theta = fit.theta | dict(zip(names, (sol.x * zscale).tolist()))
+    z = sol.x * zscale
+    _, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    weak = {}
+    for s_i, v in zip(sv, Vt):  # directions the simulated record does not see
+        if s_i > FLAT * sv[0]:
+            continue
+        d = v * zscale / np.abs(v * zscale).max()  # the direction in the parameters' units
+        involved = [j for j in range(len(names)) if abs(d[j]) > 0.05]
+        combo = " + ".join(f"{d[j]:.3g} d{names[j]}" for j in involved)
+        for j in involved:  # the start fits the record as well: kept, never moved along it
+            z[j] = z0[j]
+            weak[names[j]] = (f"the record does not change along {combo} (simulation "
+                              f"error); held at {z0[j]:.6g}")  # fmt: skip
+    theta = fit.theta | dict(zip(names, z.tolist()))
     return Fit(theta, fit.std | dict(zip(names, std.tolist())), fit.beta, fit.beta_std,
-               fit.residual_rms, fit.condition, fit.violated)  # fmt: skip
+               fit.residual_rms, fit.condition, fit.violated, weak)  # fmt: skip
 
 
 def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit):
@@ -355,6 +373,7 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
         where = [combos[i] for i in range(len(I)) if K[i, j] != 0.0]
         how = f"enters only through {'; '.join(where)}" if where else "does not enter the equations"
         unidentifiable[lin[d]] = f"{how}; held at its given value {fit.theta[lin[d]]:.6g}"
+    unidentifiable |= fit.weak
     std = {k: float(fit.std.get(k, np.nan)) for k in unknown}
     for k in unidentifiable:
         std[k] = float("nan")

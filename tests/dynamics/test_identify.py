@@ -156,10 +156,20 @@ def test_unknowns_are_checked_by_name(arm, arm_record):
 def test_a_nonlinear_unknown_is_reported_and_refined_by_simulation_error(arm, arm_record):
     """l1 (the first link's mass-centre distance) enters squared (m1 l1^2): it is held in
     the linear fit and refined with the rest by simulation error, from a start 20 % off.
-    (With m1 and Ibar1 unknown too, l1 would not be identifiable at all: the equations hold
-    them only as m1 l1 and Ibar1 + m1 l1^2; hence m1, Ibar1 given.)"""
+    With m1 and Ibar1 unknown too, l1 is not identifiable at all: the equations hold the
+    three only as the first and second moments m1 l1 and Ibar1 + m1 l1^2, and the
+    simulation error's Jacobian is flat along the family; the three are reported and held
+    at the linear fit's values (l1 as given), which fit the record as well as any."""
     fit = identify(arm, arm_record, unknown=["m2", "Ibar2", "l1"],
                    given={"l1": 0.4, "m1": 1.3, "Ibar1": 0.1})  # fmt: skip
     assert fit.nonlinear == ("l1",)
     assert fit.parameters["l1"] == pytest.approx(0.5, rel=1e-3)
     assert fit.parameters["m2"] == pytest.approx(0.8, rel=1e-3)
+    everything = identify(arm, arm_record, unknown=["m1", "m2", "Ibar1", "Ibar2", "l1"],
+                          given={"l1": 0.4})  # fmt: skip
+    assert set(everything.unidentifiable) == {"m1", "Ibar1", "l1"}
+    assert everything.parameters["l1"] == 0.4  # held where it started
+    # and what it holds them at still fits: the same first and second moments
+    p = everything.parameters
+    assert p["m1"] * p["l1"] == pytest.approx(1.3 * 0.5, rel=1e-6)
+    assert p["Ibar1"] + p["m1"] * p["l1"] ** 2 == pytest.approx(0.1 + 1.3 * 0.25, rel=1e-6)
