@@ -167,7 +167,7 @@ def violations(theta: dict[str, float], lower: dict[str, float], full: dict) -> 
     return out
 
 
-def constrained_fit(A, y, beta0, to_theta, lower_beta, full_checks) -> np.ndarray:
+def constrained_fit(A, y, beta0, lower_beta, full_checks) -> np.ndarray:
     """beta minimising |A beta - y| with theta(beta) physical: bounds alone by `lsq_linear`;
     with bodies' full inertias also positive definiteness and the triangle inequality by
     SLSQP (`full_checks(beta)` -> values that must be >= 0)."""

@@ -275,7 +275,7 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
         checks = _inertia_checks(bodies, theta_of) if any(
             set(axes.values()) & set(lin) for axes in bodies.values()
         ) else None  # fmt: skip
-        beta = estimate.constrained_fit(R, z, beta, None, lower_I, checks)
+        beta = estimate.constrained_fit(R, z, beta, lower_I, checks)
     cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
     beta_std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     theta = theta_of(beta)

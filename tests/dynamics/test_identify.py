@@ -173,3 +173,24 @@ def test_a_nonlinear_unknown_is_reported_and_refined_by_simulation_error(arm, ar
     p = everything.parameters
     assert p["m1"] * p["l1"] == pytest.approx(1.3 * 0.5, rel=1e-6)
     assert p["Ibar1"] + p["m1"] * p["l1"] ** 2 == pytest.approx(0.1 + 1.3 * 0.25, rel=1e-6)
+
+
+def test_a_full_inertia_is_fitted_positive_definite_and_within_the_triangle_inequality():
+    """A body whose principal moments the data put at (1, 1, 3) (as an unconstrained fit
+    A beta = y with A = I would) breaks I_xx + I_yy >= I_zz; the constrained fit is the
+    nearest point on that face, (4/3, 4/3, 8/3), the projection of y on x + y - z = 0."""
+    from dynamics import estimate
+
+    names = ["I_Bxx", "I_Byy", "I_Bzz", "I_Bxz", "m_B"]
+    bodies = estimate.bodies(names)
+    assert bodies == {"I_B*": {"xx": "I_Bxx", "yy": "I_Byy", "zz": "I_Bzz", "xz": "I_Bxz"}}
+    y = np.array([1.0, 1.0, 3.0])
+    theta = dict(zip(names, [*y, 0.0, 1.0]))
+    assert any("triangle" in v for v in estimate.violations(theta, {}, bodies))
+
+    def checks(beta):
+        ev = np.linalg.eigvalsh(np.diag(beta))
+        return np.array([ev[0], ev[0] + ev[1] - ev[2]])
+
+    beta = estimate.constrained_fit(np.eye(3), y, y, np.zeros(3), checks)
+    assert beta == pytest.approx([4 / 3, 4 / 3, 8 / 3], abs=1e-6)
