@@ -93,14 +93,16 @@ def test_arm_base_parameters_without_gravity_are_the_known_combinations(arm):
 
 def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
     """Sensor noise std 1e-3 rad and 1e-2 rad/s, viscous and Coulomb friction in the plant,
-    ten noise draws: every inertial parameter within 5 % in each (measured: at most 3 %),
+    ten noise draws: every inertial parameter within 5 % in each (measured: at most 1.7 %;
+    4.8 % with the excitation at 0.5 of these torques instead of 0.8, Ibar1 then the least
+    excited),
     and the 95 % intervals of all parameters, friction included, cover the truth in at
     least 85 % of the 80 cases (the sandwich errors are conservative here: measured 100 %;
     85 % leaves room for chance, 2.3 standard deviations of a binomial at 95 %)."""
     friction = {"viscous_theta1": 0.1, "coulomb_theta1": 0.3,
                 "viscous_theta2": 0.05, "coulomb_theta2": 0.2}  # fmt: skip
     plant = with_friction(arm, "all").compile(**ARM, **friction)
-    clean = simulate(plant, [0.1, 0.2, 0.0, 0.0], [6.0, 3.0])
+    clean = simulate(plant, [0.1, 0.2, 0.0, 0.0], [6.0, 3.0], fraction=0.8)
     truth = ARM | friction
     covered = []
     for seed in range(10):
