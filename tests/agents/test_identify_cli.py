@@ -16,6 +16,7 @@ from agents import identify
 ARM = "Lagrange/TwoLinkArm-v1"
 
 
+@pytest.mark.slow  # records, fits and draws the figure: ~7 s
 def test_record_then_fit_writes_parameters_that_gym_make_takes(tmp_path, capsys):
     """A noise-free record of a plant off nominal (m2 x 0.5) at the env's 20 Hz is fitted
     to 1 % (the regression is exact up to its quadrature's error, of order (omega h)^4:
@@ -58,7 +59,7 @@ def test_bad_arguments_end_in_one_line(argv, message, capsys, tmp_path, monkeypa
     assert message in err and "Traceback" not in err
 
 
-@pytest.mark.slow  # records and plans nothing, but runs 100 episodes twice: ~20 s
+@pytest.mark.slow  # records, fits and runs 100 episodes twice: ~20 s
 def test_the_worked_example_runs_as_written(tmp_path, monkeypatch, capsys):
     page = Path(__file__).resolve().parents[2] / "docs" / "identification.md"
     text = page.read_text(encoding="utf-8")

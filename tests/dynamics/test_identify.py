@@ -120,6 +120,7 @@ def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
     assert np.mean(covered) >= 0.85
 
 
+@pytest.mark.slow  # two 20 s records of the disk and a smoothed, compensated fit: ~5 s
 def test_rolling_disk_is_identified_through_its_constraints():
     """The disk's rolling constraints (nonholonomic) are projected out with the null space
     of B: noise-free, m, I and J within 0.1 % (measured: 1.2e-4, the midpoint
