@@ -13,11 +13,12 @@ parameters as nominal), and the controller is designed again on the identified m
 parameters (the oracle: what a perfect identification would give), then run the same
 seeded episodes on the hidden plant; `--records N` repeats the record (its excitation and
 noise seeded afresh), identification and redesign N times, since a design can sit on a
-knife's edge (the acrobot's plan + TVLQR designed for m1 = 0.75 fails on that plant, and
-designed for 0.76 succeeds). The actuators are the nominal env's throughout
-(`max_input`): where a task derives its input limits from the parameters (the arm's
-holding torques), a heavier plant must not get stronger motors. Writes results.md and
-results.json to --out, atomically.
+knife's edge: the acrobot's plan + TVLQR designed for m1 = 0.75 (its true value) fails on
+a plant with m1 x 0.75 in every episode, designed for 0.76 succeeds in every one; the case
+here, every mass and inertia x 1.25, has an oracle that succeeds. The actuators are the
+nominal env's throughout (`max_input`): where a task derives its input limits from the
+parameters (the arm's holding torques), a heavier plant must not get stronger motors.
+Writes results.md and results.json to --out, atomically.
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ class Case:
 
 CASES = (
     Case("Lagrange/TwoLinkArm-v1", "lqr", {"m2": 0.25}, "LQR below 50 % at m2 x 0.25"),
-    Case("Lagrange/Acrobot-v2", "plan", {"m1": 0.75}, "plan + TVLQR below 50 % at m1 x 0.75"),
+    Case("Lagrange/Acrobot-v2", "plan", dict.fromkeys(("m1", "m2", "Ibar1", "Ibar2"), 1.25),
+         "plan + TVLQR below 50 % with every mass and inertia x 1.25"),
     Case("examples.cart_pole:Examples/CartPole-v0", "lqr", {"m_cart": 0.1},
          "LQR 0 % at m_cart x 0.1"),
     Case("examples.furuta:Examples/Furuta-v0", "lqr", {"J": 0.1}, "LQR 0 % at J x 0.1"),
@@ -165,11 +167,13 @@ def table(rows: list[dict]) -> str:
         hidden = ", ".join(f"{k} = {v:.4g}" for k, v in r["hidden"].items())
         found = "; ".join(cell(f["score"]) for f in fits)
         feedback = ", ".join(sorted({f["feedback"] for f in fits}))
-        seconds = max(f["identify_s"] for f in fits)
+        seconds = f"{fits[0]['identify_s']:.2f}"  # the first in the process loads the model
+        if len(fits) > 1:
+            seconds += f" first, {max(f['identify_s'] for f in fits[1:]):.2f} later"
         lines.append(
             f"| {r['env_id']} | {r['controller']} | {hidden} | {cell(r['nominal'])} | "
             f"{found} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | "
-            f"{min(f['recorded_s'] for f in fits):.0f} s, {feedback} | {seconds:.2f} |"
+            f"{min(f['recorded_s'] for f in fits):.0f} s, {feedback} | {seconds} |"
         )
     return "\n".join(lines) + "\n"
 
