@@ -55,6 +55,7 @@ from .regressor import (
     COULOMB_WIDTH,
     Regressor,
     as_model,
+    catalogue,
     friction_names,
     friction_setting,
     inertial,
@@ -137,19 +138,20 @@ def identify(
     base_model = as_model(model)
     setting = friction_setting(base_model, friction)
     full = with_friction(base_model, setting, width)
-    names = list(full.parameters)
+    cat = catalogue(full)
+    names = list(cat.defaults)
     unknown = _unknown(base_model, unknown) + [
         p for c, kind in setting.items() for p, k in zip(friction_names(c), ("viscous", "coulomb"))
         if k in kind
     ]  # fmt: skip
-    values = dict(full.parameters) | _given(full, given)
-    rec = regression.check_record(data, len(full.coordinates), len(full.inputs), noise)
+    values = dict(cat.defaults) | _given(full, given)
+    rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)
     reg = Regressor(full, unknown)
     lin = list(reg.linear)
     p = np.array([values[k] for k in names])
     rows = regression.build_rows(reg, rec, p, window, span)
     W = regression.random_regressor(reg, rec, p, seed)
-    b = estimate.base(W, estimate.preference(lin, full.units))
+    b = estimate.base(W, estimate.preference(lin, cat.units))
     fit = _fit(rows, lin, b, values, full)
     fitted = _fitted(rows, rec, lin, b, fit)
     if refine is None:
@@ -174,7 +176,7 @@ def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
 
 # ---- arguments ---------------------------------------------------------------------------
 def _unknown(model, unknown) -> list[str]:
-    names = list(model.parameters)
+    names = list(catalogue(model).defaults)
     if unknown is None:
         unknown = inertial(model)
         if not unknown:
@@ -196,8 +198,9 @@ def _unknown(model, unknown) -> list[str]:
 def _given(model, given) -> dict[str, float]:
     given = dict(given or {})
     for name in given:
-        if name not in model.parameters:
-            close = difflib.get_close_matches(str(name), list(model.parameters), n=1)
+        known = list(catalogue(model).defaults)
+        if name not in known:
+            close = difflib.get_close_matches(str(name), known, n=1)
             hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ValueError(f"given: {model.name} has no parameter {name!r}.{hint}")
     return {k: float(v) for k, v in given.items()}
@@ -219,12 +222,12 @@ class Fit:
 def _lower(full, names: list[str], values: dict) -> dict[str, float]:
     """Lower bounds of the physical unknowns: positive parameters above 1e-9 x their given
     value (so the model still compiles), friction coefficients at 0."""
-    spec = {str(k): v for k, v in full.spec.parameters.items()}
+    cat = catalogue(full)
     out = {}
     for name in names:
-        if name.startswith(("viscous_", "coulomb_")) and spec[name].unit.startswith("force"):
+        if name.startswith(("viscous_", "coulomb_")) and cat.units[name].startswith("force"):
             out[name] = 0.0
-        elif spec[name].positive:
+        elif cat.positive[name]:
             out[name] = 1e-9 * abs(values[name]) if values[name] else 1e-12
     return out
 
@@ -311,7 +314,7 @@ def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
     from scipy.optimize import least_squares
 
     system = model.compile(**fit.theta)
-    h, T, n = rec.h, len(rec.t), len(model.coordinates)
+    h, T, n = rec.h, len(rec.t), len(catalogue(model).coordinates)
     S = max(2, int(round(SEGMENT / h)))
     starts = np.arange(0, T - 1 - S, S)
     if len(starts) < 1:
@@ -382,7 +385,7 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
             if name in fit.theta}
         for c in setting
     }  # fmt: skip
-    parameters = {k: float(fit.theta[k]) for k in base_model.parameters}
+    parameters = {k: float(fit.theta[k]) for k in catalogue(base_model).defaults}
     return Identification(
         parameters=parameters,
         std=std,
@@ -391,7 +394,7 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
         unidentifiable=unidentifiable,
         nonlinear=tuple(reg.nonlinear),
         friction=friction,
-        residual_rms=dict(zip(full.coordinates, map(float, fit.residual_rms))),
+        residual_rms=dict(zip(catalogue(full).coordinates, map(float, fit.residual_rms))),
         condition=float(fit.condition),
         violated=list(fit.violated),
         unknown=tuple(unknown),

@@ -68,6 +68,38 @@ def as_model(model) -> Model:
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class Catalogue:
+    """A model's parameters and shape as identification reads them: from its compiled
+    system (the cache) rather than its spec, whose factory can take seconds (the rolling
+    disk's simplifications: 10 s of a 12 s identification under load)."""
+
+    defaults: dict  # name -> default, model order
+    units: dict
+    positive: dict
+    coordinates: tuple
+    inputs: tuple
+
+
+_catalogues: dict[str, Catalogue] = {}
+
+
+def catalogue(model: Model) -> Catalogue:
+    """The `Catalogue` of `model` (remembered by its cache key)."""
+    key = model.key
+    if key not in _catalogues:
+        system = model.compile()
+        module, _ = system.kernels()
+        _catalogues[key] = Catalogue(
+            dict(system.parameters),
+            dict(system.units),
+            dict(zip(module.PARAMETERS, module.POSITIVE)),
+            tuple(system.coordinates),
+            tuple(system.inputs),
+        )
+    return _catalogues[key]
+
+
 def friction_names(coordinate: str) -> tuple[str, str]:
     """The parameter names of the viscous and Coulomb coefficients on `coordinate`."""
     return f"viscous_{coordinate}", f"coulomb_{coordinate}"
@@ -77,7 +109,7 @@ def friction_setting(model: Model, friction) -> dict[str, str]:
     """`friction` (None, "all", or {coordinate: kind}) as {coordinate: kind}, checked."""
     if friction is None:
         return {}
-    coords = model.coordinates
+    coords = catalogue(model).coordinates
     if friction == "all":
         return {c: "viscous+coulomb" for c in coords}
     if not isinstance(friction, dict):
@@ -110,6 +142,16 @@ def with_friction(model, friction, width: float = COULOMB_WIDTH) -> Model:
     setting = friction_setting(model, friction)
     if not setting:
         return model
+    memo = (model.key, tuple(sorted(setting.items())), float(width))
+    if memo not in _with_friction:
+        _with_friction[memo] = _add_friction(model, setting, width)
+    return _with_friction[memo]
+
+
+_with_friction: dict[tuple, Model] = {}
+
+
+def _add_friction(model: Model, setting: dict, width: float) -> Model:
     spec = model.spec
     forces = dict(spec.forces)
     params = dict(spec.parameters)
@@ -136,7 +178,7 @@ def with_friction(model, friction, width: float = COULOMB_WIDTH) -> Model:
 def inertial(model: Model) -> list[str]:
     """The model's inertial parameters (unit kg or kg*m^2: masses, moments and products of
     inertia), in model order: what `identify` estimates by default."""
-    return [k for k, unit in model.units.items() if unit in INERTIAL_UNITS]
+    return [k for k, unit in catalogue(model).units.items() if unit in INERTIAL_UNITS]
 
 
 # ---- the symbolic regressor --------------------------------------------------------------
@@ -299,8 +341,8 @@ class Regressor:
         self._m: ModuleType = cache.load_or_build(f"{self.model.name}_regressor", key, build)
         self.linear: tuple[str, ...] = self._m.LINEAR
         self.nonlinear: tuple[str, ...] = self._m.NONLINEAR
-        self.n_q = len(self.model.coordinates)
-        self.n_u = len(self.model.inputs)
+        cat = catalogue(self.model)
+        self.n_q, self.n_u = len(cat.coordinates), len(cat.inputs)
 
     def acceleration(self, T, X, QDD, U, p) -> tuple[np.ndarray, np.ndarray]:
         """(Y (N, n, k), y0 (N, n)): M q'' - F = Y theta + y0 at each row."""
