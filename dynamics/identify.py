@@ -381,8 +381,8 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
     for k in unidentifiable:
         std[k] = float("nan")
     friction = {
-        c: {kind: fit.theta[name] for kind, name in zip(("viscous", "coulomb"), friction_names(c))
-            if name in fit.theta}
+        c: {kind: float(fit.theta[name])
+            for kind, name in zip(("viscous", "coulomb"), friction_names(c)) if name in fit.theta}
         for c in setting
     }  # fmt: skip
     parameters = {k: float(fit.theta[k]) for k in catalogue(base_model).defaults}

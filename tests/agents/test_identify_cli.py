@@ -28,8 +28,11 @@ def test_record_then_fit_writes_parameters_that_gym_make_takes(tmp_path, capsys)
     data = np.load(record)
     assert data["q"].shape == (len(data["t"]), 2) and data["u"].shape[1] == 2
     out = tmp_path / "fit"
-    assert identify.main([ARM, "--data", str(record), "--out", str(out)]) == 0
-    params = yaml.safe_load((out / "parameters.yml").read_text())["parameters"]
+    assert identify.main([ARM, "--data", str(record), "--out", str(out), "--friction",
+                          "theta2=viscous"]) == 0  # fmt: skip
+    written = yaml.safe_load((out / "parameters.yml").read_text())
+    params = written["parameters"]
+    assert written["friction"]["theta2"]["viscous"] == pytest.approx(0.0, abs=1e-2)
     assert params["m2"] == pytest.approx(0.5, rel=1e-2)
     assert params["m1"] == pytest.approx(1.0, rel=1e-2)
     env = gym.make(ARM, **params)
