@@ -184,8 +184,12 @@ def main(argv=None) -> int:
     p.add_argument("--cases", help="comma-separated env ids of CASES (default: all)")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--records", type=int, default=1,
-                   help="records (seeded excitation and noise) identified per case")
+    p.add_argument(
+        "--records",
+        type=int,
+        default=1,
+        help="records (seeded excitation and noise) identified per case",
+    )
     p.add_argument("--out", default="runs/identification")
     args = p.parse_args(argv)
     wanted = args.cases.split(",") if args.cases else None

@@ -134,9 +134,7 @@ def bodies(names: list[str]) -> dict[str, dict[str, str]]:
     for name in names:
         for m in re.finditer("|".join(_AXES), name):
             found.setdefault((name[: m.start()], name[m.end() :]), {})[m.group()] = name
-    return {
-        f"{a}*{b}": axes for (a, b), axes in found.items() if {"xx", "yy", "zz"} <= set(axes)
-    }
+    return {f"{a}*{b}": axes for (a, b), axes in found.items() if {"xx", "yy", "zz"} <= set(axes)}
 
 
 def inertia_matrix(axes: dict[str, str], value) -> np.ndarray:

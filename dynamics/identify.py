@@ -248,8 +248,10 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
     ones = np.ones(rows.n_eq)
     first = estimate.compensated(A, y, *noise(ones))
     if first is None:  # the noise outweighs the signal in some direction: fit as it is
-        violated.append("the record's rate noise exceeds its signal in some direction: "
-                        "no errors-in-variables compensation (expect estimates shrunk)")
+        violated.append(
+            "the record's rate noise exceeds its signal in some direction: "
+            "no errors-in-variables compensation (expect estimates shrunk)"
+        )
         first = (A, y, A.T @ A)
         rows.noise = None
     beta, _ = estimate.scaled_lstsq(*first[:2])

@@ -113,9 +113,7 @@ def friction_setting(model: Model, friction) -> dict[str, str]:
     if friction == "all":
         return {c: "viscous+coulomb" for c in coords}
     if not isinstance(friction, dict):
-        raise TypeError(
-            f"friction must be None, 'all' or {{coordinate: kind}}, got {friction!r}."
-        )
+        raise TypeError(f"friction must be None, 'all' or {{coordinate: kind}}, got {friction!r}.")
     out = {}
     for name, kind in friction.items():
         if name not in coords:
