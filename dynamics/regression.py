@@ -109,10 +109,12 @@ def signals(rec: Record, window: int | None, constrained: bool) -> tuple:
         raise ValueError(
             f"window must be 0 or an odd number of samples > {POLYORDER}, got {window}."
         )
-    if rec.qd is None:
+    if rec.qd is None:  # rates by the filter's derivative; accelerations smooth the rest too
         w = window or default
-        q = savgol_filter(rec.q, w, POLYORDER, axis=0)
         qd = savgol_filter(rec.q, w, POLYORDER, deriv=1, delta=h, axis=0)
+        if not constrained:
+            return rec.q, qd, rec.u, w, noisy
+        q = savgol_filter(rec.q, w, POLYORDER, axis=0)
         return q, qd, savgol_filter(rec.u, w, POLYORDER, axis=0), w, noisy
     if window is None:  # the momentum form averages noise itself; accelerations need it
         smooth = max(2 * int(round(SMOOTH / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
@@ -163,11 +165,12 @@ def build_rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
     y = -(p0[ends[1:]] - p0[ends[:-1]] - Ig.reshape(n_win, L, n).sum(1)) / (L * h)
     eq = np.tile(np.arange(n), n_win)
     time = np.repeat(np.arange(n_win), n)
-    noise = rate_noise(reg, rec, t, X, u, p, ends, L * h) if noisy and w == 0 else None
+    compensate = noisy and (w == 0 or rec.qd is None)
+    noise = rate_noise(reg, rec, t, X, u, p, ends, L * h, w) if compensate else None
     return Rows(A.reshape(-1, nk), y.reshape(-1), eq, time, lag, None, n, noise)
 
 
-def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s):
+def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s, w: int = 0):
     """Second moments of the rate noise in the momentum rows, for bias compensation.
 
     A row's regressor and target hold the momenta at the window's ends, which are linear in
@@ -178,7 +181,7 @@ def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s):
     (the rate's rms departure from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the
     filter's centre weight)."""
     n = reg.n_q
-    sigma = rate_sigma(rec)
+    sigma = rate_sigma(rec, w)
     Xe, te, ue = X[ends], t[ends], u[ends]
     P, p0, _, _ = reg.momentum(te, Xe, ue, p)
     k = P.shape[2]
@@ -195,16 +198,25 @@ def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s):
     return CA, cy
 
 
-def rate_sigma(rec: Record) -> np.ndarray:
-    """The rates' noise std: given, or estimated (see `_rate_noise`)."""
+def rate_sigma(rec: Record, w: int = 0) -> np.ndarray:
+    """The rates' noise std: given, or estimated from the record (a signal's rms departure
+    from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the filter's centre weight).
+    Without recorded rates, those of the filter's derivative (window w) of positions with
+    noise sigma_q: sigma_q sqrt(sum d_j^2) / h, d its weights."""
     from scipy.signal import savgol_coeffs
 
-    if rec.noise is not None:
-        return np.full(rec.q.shape[1], rec.noise[1])
-    w = max(2 * int(round(WINDOW / rec.h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
-    c0 = savgol_coeffs(w, POLYORDER)[w // 2]
-    r = rec.qd - savgol_filter(rec.qd, w, POLYORDER, axis=0)
-    return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
+    def measured(a):
+        v = max(2 * int(round(WINDOW / rec.h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
+        c0 = savgol_coeffs(v, POLYORDER)[v // 2]
+        r = a - savgol_filter(a, v, POLYORDER, axis=0)
+        return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
+
+    n = rec.q.shape[1]
+    if rec.qd is not None:
+        return np.full(n, rec.noise[1]) if rec.noise is not None else measured(rec.qd)
+    sigma_q = np.full(n, rec.noise[0]) if rec.noise is not None else measured(rec.q)
+    d = savgol_coeffs(w, POLYORDER, deriv=1)
+    return sigma_q * np.sqrt(np.sum(d**2)) / rec.h
 
 
 def acceleration_noise(reg, rec: Record, T, X, QDD, U, p, w: int):

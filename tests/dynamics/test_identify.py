@@ -197,3 +197,20 @@ def test_a_full_inertia_is_fitted_positive_definite_and_within_the_triangle_ineq
 
     beta = estimate.constrained_fit(np.eye(3), y, y, np.zeros(3), checks)
     assert beta == pytest.approx([4 / 3, 4 / 3, 8 / 3], abs=1e-6)
+
+
+def test_without_recorded_rates_they_are_the_savitzky_golay_derivative(arm, arm_record):
+    """Positions only: the rates are the cubic Savitzky-Golay derivative over 0.1 s.
+    Noise-free every parameter within 1 % (measured 0.5 %: the filter's error on the
+    motion); with position noise of std 1e-3 rad the derived rates' noise (its std from the
+    filter's weights) is compensated like recorded rates' and the 95 % intervals cover the
+    truth (measured: at most 0.7 standard errors off, Ibar1 8 % off)."""
+    data = {k: arm_record[k] for k in ("t", "q", "u")}
+    fit = identify(arm, data)
+    for name, value in ARM.items():
+        assert fit.parameters[name] == pytest.approx(value, rel=1e-2)
+    rng = np.random.default_rng(0)
+    data["q"] = data["q"] + 1e-3 * rng.standard_normal(data["q"].shape)
+    fit = identify(arm, data, noise=(1e-3, 0.0))
+    for name, value in ARM.items():
+        assert abs(fit.parameters[name] - value) <= 1.96 * fit.std[name]
