@@ -188,6 +188,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--fraction", type=float, default=0.5, help="excitation peak / action range")
     p.add_argument("--feedback", choices=["none", "lqr"], help="default: open loop, then LQR")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--candidates",
+        type=int,
+        default=1,
+        help="excitations tried on the nominal model; the best conditioned is run",
+    )
     p.add_argument("--unknown", help="comma-separated parameters (default: inertial)")
     p.add_argument("--friction", help="all, or COORD=viscous|coulomb|viscous+coulomb,...")
     p.add_argument("--given", nargs="*", metavar="NAME=VALUE", help="known parameter values")
@@ -206,7 +212,7 @@ def main(argv=None) -> int:
 
             noise = tuple(float(v) for v in args.noise.split(","))
             data = record(env_id, args.seconds, _assignments(args.plant, "--plant"), noise,
-                          args.fraction, args.seed, args.feedback)  # fmt: skip
+                          args.fraction, args.seed, args.feedback, args.candidates)  # fmt: skip
             with atomic_path(args.record, suffix=".npz") as tmp:
                 np.savez(tmp, **data)
             print(f"recorded {len(data['t'])} samples ({data['feedback']}) to {args.record}")

@@ -37,31 +37,26 @@ def record(
     fraction: float = 0.5,
     seed: int = 0,
     feedback: str | None = None,
+    candidates: int = 1,
 ) -> dict[str, np.ndarray]:
     """A record {t, q, qd, u, ...} of `seconds` of excitation on `env_id` with `plant`
-    parameters. feedback: None (open loop, then LQR if the env ends early), "none" or
-    "lqr". Also returns the plant's parameters (`plant_names`, `plant_values`), the noise
-    and the env id, for the report."""
+    (`gym.make` keyword arguments: the model's parameters, options such as max_input).
+    feedback: None (open loop, then LQR if the env ends early), "none" or "lqr".
+    candidates: excitations (phases seeded seed, seed + 1, ...) tried first on the env's
+    nominal model, the one whose record gives the best conditioned regressor (the
+    identification's condition number) then run on the plant. Also returns the plant's
+    parameters (`plant_names`, `plant_values`), the noise and the env id, for the report."""
     if not seconds > 0:
         raise UserError(f"seconds must be positive, got {seconds}.")
     if len(noise) != 2 or min(noise) < 0:
         raise UserError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
-    env = lagrange_env(gym.make(env_id, **(plant or {})))
-    tries = [(feedback, fraction)] if feedback else [
-        ("none", fraction), ("none", fraction / 2), ("lqr", fraction)]  # fmt: skip
-    best, mode = None, None
-    for how, share in tries:
-        rec = _run(env, seconds, share, seed, how)
-        if rec is not None and (best is None or len(rec["t"]) > len(best["t"])):
-            best, mode = rec, how
-        if rec is not None and rec["t"][-1] >= seconds - 1e-9:
-            break
-    if best is None or best["t"][-1] < MIN_SECONDS:
-        raise UserError(
-            f"{env_id} ended within {MIN_SECONDS} s under every excitation tried "
-            f"({', '.join(m for m, _ in tries)}); try a smaller --fraction."
-        )
-    rec = best
+    if int(candidates) < 1:
+        raise UserError(f"candidates must be at least 1, got {candidates}.")
+    plant = dict(plant or {})
+    if candidates > 1:
+        seed = best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates)
+    env = lagrange_env(gym.make(env_id, **plant))
+    rec, mode = _excite(env, env_id, seconds, fraction, seed, feedback)
     rng = np.random.default_rng(seed + 1)
     n = env.system.n_q
     rec["q"] = rec["q"] + noise[0] * rng.standard_normal(rec["q"].shape)
@@ -76,6 +71,42 @@ def record(
         "coordinates": np.array(env.system.coordinates[:n]),
     }
     return rec
+
+
+def _excite(env, env_id: str, seconds: float, fraction: float, seed: int, feedback):
+    """(record, mode): open loop, then half the excitation, then under LQR (or `feedback`
+    alone), until one lasts `seconds`; else the longest if it lasts MIN_SECONDS."""
+    tries = [(feedback, fraction)] if feedback else [
+        ("none", fraction), ("none", fraction / 2), ("lqr", fraction)]  # fmt: skip
+    best, mode = None, None
+    for how, share in tries:
+        rec = _run(env, seconds, share, seed, how)
+        if rec is not None and (best is None or len(rec["t"]) > len(best["t"])):
+            best, mode = rec, how
+        if rec is not None and rec["t"][-1] >= seconds - 1e-9:
+            break
+    if best is None or best["t"][-1] < MIN_SECONDS:
+        raise UserError(
+            f"{env_id} ended within {MIN_SECONDS} s under every excitation tried "
+            f"({', '.join(m for m, _ in tries)}); try a smaller --fraction."
+        )
+    return best, mode
+
+
+def best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates) -> int:
+    """The seed of the excitation, of `candidates` tried on the nominal model (with the
+    plant's options that are not model parameters, e.g. its motors), whose record the
+    identification finds best conditioned."""
+    from .identify import fit
+
+    names = lagrange_env(gym.make(env_id)).system.parameters
+    options = {k: v for k, v in plant.items() if k not in names}
+    env = lagrange_env(gym.make(env_id, **options))
+    scores = {}
+    for s in range(seed, seed + int(candidates)):
+        rec, _ = _excite(env, env_id, seconds, fraction, s, feedback)
+        scores[s] = fit(env_id, rec | {"noise": np.zeros(2)}).condition
+    return min(scores, key=scores.get)
 
 
 def _run(env, seconds: float, fraction: float, seed: int, mode: str):

@@ -24,7 +24,7 @@ def test_record_then_fit_writes_parameters_that_gym_make_takes(tmp_path, capsys)
     results carry everything the report promises."""
     record = tmp_path / "arm.npz"
     assert identify.main([ARM, "--record", str(record), "--plant", "m2=0.5",
-                          "--seconds", "8"]) == 0  # fmt: skip
+                          "--seconds", "8", "--candidates", "2"]) == 0  # fmt: skip
     data = np.load(record)
     assert data["q"].shape == (len(data["t"]), 2) and data["u"].shape[1] == 2
     out = tmp_path / "fit"
