@@ -26,14 +26,8 @@ import numpy as np
 
 from dynamics.files import atomic_path, write_atomic
 
-from .common import UserError, check_env_id, fail, task_of
-
-
-def model_of(env_id: str):
-    """The `dynamics.Model` an env's task runs on."""
-    from dynamics.regressor import as_model
-
-    return as_model(task_of(env_id).model)
+from .common import UserError, check_env_id, fail
+from .recording import fit, model_of
 
 
 def _assignments(items, label: str) -> dict:
@@ -71,18 +65,6 @@ def load_record(path: Path) -> dict:
         raise UserError(f"No record at {path}.")
     with np.load(path, allow_pickle=False) as f:
         return {k: f[k] for k in f.files}
-
-
-def fit(env_id: str, data: dict, unknown=None, friction=None, given=None):
-    """`dynamics.identify.identify` on an env's model."""
-    from dynamics.identify import identify
-
-    record = {k: data[k] for k in ("t", "q", "qd", "u") if k in data}
-    noise = tuple(data["noise"].tolist()) if "noise" in data else None
-    try:
-        return identify(model_of(env_id), record, unknown, friction, given=given, noise=noise)
-    except (TypeError, ValueError) as exc:
-        raise UserError(str(exc)) from None
 
 
 def write_results(env_id: str, result, data: dict, out: Path) -> None:
@@ -174,7 +156,7 @@ def figure(env_id: str, result, data: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m agents.identify", description=__doc__.split("\n\n")[0]
     )
@@ -201,7 +183,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    p = parser()
+    p = build_parser()
     args = p.parse_args(argv)
     try:
         env_id = check_env_id(args.env_id, lagrange=True)

@@ -1,4 +1,4 @@
-"""Recording an exciting input on any Lagrange env, for `dynamics.identify`.
+"""Recording an exciting input on any Lagrange env, and fitting a record, for `dynamics.identify`.
 
 The env is made with the plant's parameters (`gym.make(env_id, **plant)`) and stepped
 without its time limit; the excitation is a periodic multisine (`dynamics.excite`) in the
@@ -19,7 +19,7 @@ import numpy as np
 
 from dynamics.excite import multisine
 
-from .common import UserError, lagrange_env
+from .common import UserError, lagrange_env, task_of
 
 MIN_SECONDS = 5.0
 """The shortest record kept when every try ends early."""
@@ -93,12 +93,29 @@ def _excite(env, env_id: str, seconds: float, fraction: float, seed: int, feedba
     return best, mode
 
 
+def model_of(env_id: str):
+    """The `dynamics.Model` an env's task runs on."""
+    from dynamics.regressor import as_model
+
+    return as_model(task_of(env_id).model)
+
+
+def fit(env_id: str, data: dict, unknown=None, friction=None, given=None):
+    """`dynamics.identify.identify` on an env's model."""
+    from dynamics.identify import identify
+
+    record = {k: data[k] for k in ("t", "q", "qd", "u") if k in data}
+    noise = tuple(data["noise"].tolist()) if "noise" in data else None
+    try:
+        return identify(model_of(env_id), record, unknown, friction, given=given, noise=noise)
+    except (TypeError, ValueError) as exc:
+        raise UserError(str(exc)) from None
+
+
 def best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates) -> int:
     """The seed of the excitation, of `candidates` tried on the nominal model (with the
     plant's options that are not model parameters, e.g. its motors), whose record the
     identification finds best conditioned."""
-    from .identify import fit
-
     names = lagrange_env(gym.make(env_id)).system.parameters
     options = {k: v for k, v in plant.items() if k not in names}
     env = lagrange_env(gym.make(env_id, **options))

@@ -40,8 +40,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 from agents.common import check_env_id, write_atomic  # noqa: E402
-from agents.identify import fit  # noqa: E402
-from agents.recording import record  # noqa: E402
+from agents.recording import fit, record  # noqa: E402
 from agents.report import wilson_interval  # noqa: E402
 
 
