@@ -637,7 +637,7 @@ def pages() -> tuple[dict[str, str], dict[str, bytes]]:
 
 
 # ---- mkdocs hooks ------------------------------------------------------------------------
-GUIDE = ("new-system.md", "scaling-out.md", "architecture.md", "errata.md")
+GUIDE = ("new-system.md", "identification.md", "scaling-out.md", "architecture.md", "errata.md")
 
 
 def on_config(config):

@@ -1,0 +1,403 @@
+"""System identification: a model's parameters fitted to a recorded trajectory.
+
+    >>> from dynamics.identify import identify
+    >>> fit = identify("two_link_arm", {"t": t, "q": q, "qd": qd, "u": u})
+    >>> fit.parameters          # every parameter: compile(**fit.parameters) accepts it
+    >>> fit.base, fit.unidentifiable, fit.std, fit.condition
+
+The equations come from the model's own derivation (`dynamics.regressor`): linear in the
+unknowns (default: the inertial parameters), reduced to the base parameters the equations
+can determine (`dynamics.estimate`), with optional friction columns.
+
+The record. `t` (T,) uniformly sampled, `q` (T, n), optional `qd` (T, n), `u` (T, n_u) in
+the model's input order, each input held from its sample to the next (zero-order hold, as
+an env steps; the last row's input is not used). Without `qd`, the rates are the
+Savitzky-Golay derivative of `q` (`scipy.signal.savgol_filter`, cubic, a `window` of
+`regression.WINDOW` s unless given). A record is noisy when `noise` says so, or, without
+it, when its positions and rates disagree beyond integration error (`regression.NOISY`).
+
+The rows (`dynamics.regression`). Unconstrained models: Lagrange's equations integrated
+over windows of `span` samples (default 0.1 s), p(x_end) - p(x_start) = integral of g, the
+integral by Simpson's rule on each sampling interval with the midpoint state from cubic
+Hermite interpolation of (q, q') at its ends: errors of order (omega h)^4, noise-free
+records fit to about 1e-7, and noise is averaged over the window, never differentiated.
+Constrained models: M q'' - F at each interval's midpoint, with q'' = (q'(t1) - q'(t0)) / h,
+projected on the null space of the constraint matrix B (N^T B^T lambda = 0 removes the
+unknown constraint forces); a noisy record's signals, inputs too (a linear filter applied
+to both sides keeps them paired), are smoothed over `regression.SMOOTH` s first
+(`window=0` never smooths). Rate noise in the rows would shrink the estimates (errors in
+variables): its expected second moments are computed from the rates' noise std (given, or
+estimated) and removed from the normal equations.
+
+The fit. Weighted least squares (each equation weighted by the inverse rms of its
+residual in a first unweighted fit, unless that weighting lets the noise outweigh the
+signal in some direction), standard errors by the Newey-West sandwich
+(`estimate.hac_covariance`); when the estimates are not physical (a mass, moment or friction
+coefficient below zero; a body's full inertia not positive definite or against the triangle
+inequality), the fit is repeated with those constraints. Unknowns that enter nonlinearly
+are held at their given values in the linear fit, then every estimated parameter is
+refined by simulation error (multiple shooting over `SEGMENT` s, scipy `least_squares`).
+Parameters the data cannot determine are held at their given values and listed in
+`unidentifiable` with the combination they enter through; they are never estimated.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from . import estimate, regression
+from .regression import POLYORDER
+from .regressor import (
+    COULOMB_WIDTH,
+    Regressor,
+    as_model,
+    catalogue,
+    friction_names,
+    friction_setting,
+    inertial,
+    with_friction,
+)
+
+SEGMENT = 0.5
+"""Length (s) of a simulation-error segment (multiple shooting)."""
+FLAT = 1e-6
+"""A singular value of the simulation error's Jacobian below this times the largest marks
+a direction the record does not determine (noise-free, the arm's (m1, l1, Ibar1) family
+with the first and second moments m1 l1, Ibar1 + m1 l1^2 fixed: about 1e-9)."""
+
+
+@dataclass
+class Identification:
+    """The result of `identify` (units: the model's).
+
+    parameters: every parameter of the model by name (unknowns at their estimates, the rest
+        and the unidentifiable ones at their given values): `Model.compile(**parameters)`
+        and `gym.make(env_id, **parameters)` accept it.
+    std: standard error of each estimated parameter (NaN for the unidentifiable).
+    base: the identifiable combinations (text, e.g. 'Ibar1 + 0.25*m1') and their values;
+        base_std their standard errors.
+    unidentifiable: {parameter: why}, the unknowns the equations do not determine.
+    nonlinear: the unknowns that enter nonlinearly (refined by simulation error).
+    friction: {coordinate: {"viscous": b, "coulomb": c}} where friction was fitted.
+    residual_rms: {coordinate: rms of the fit's equation residual} (generalised forces).
+    condition: condition number of the record's base regressor (unit-norm columns);
+        above about 1e4 the record excites some combination poorly.
+    violated: what the unconstrained fit broke (empty if it was physical).
+    """
+
+    parameters: dict[str, float]
+    std: dict[str, float]
+    base: dict[str, float]
+    base_std: dict[str, float]
+    unidentifiable: dict[str, str]
+    nonlinear: tuple[str, ...]
+    friction: dict[str, dict[str, float]]
+    residual_rms: dict[str, float]
+    condition: float
+    violated: list[str] = field(default_factory=list)
+    unknown: tuple[str, ...] = ()
+    fitted: dict = field(default_factory=dict)
+    """The record's equations as fitted: time (rows,), measured and predicted (rows, n_eq):
+    the generalised forces of the inputs (and of everything not unknown) against the model's
+    prediction (the momentum form: averaged over each window)."""
+
+
+def identify(
+    model,
+    data,
+    unknown=None,
+    friction=None,
+    *,
+    given: dict | None = None,
+    window: int | None = None,
+    span: int | None = None,
+    width: float = COULOMB_WIDTH,
+    refine: bool | None = None,
+    noise: tuple[float, float] | None = None,
+    seed: int = 0,
+) -> Identification:
+    """Fit `model`'s `unknown` parameters to the record `data` (see the module docstring).
+
+    model: a `dynamics.Model`, a registered name, a ModelSpec or a factory.
+    data: mapping with t (T,), q (T, n), optional qd (T, n), u (T, n_u).
+    unknown: parameter names (default: the inertial ones, unit kg or kg*m^2).
+    friction: None, "all", or {coordinate: "viscous" | "coulomb" | "viscous+coulomb"}.
+    given: values of the other parameters (default the model's), and the values the
+        unidentifiable and nonlinear unknowns start from.
+    window: Savitzky-Golay window in samples (odd; 0: no smoothing; None: see above).
+    span: samples per row of the momentum form (None: `regression.SPAN` seconds).
+    width: rate scale of the smooth Coulomb term tanh(q'/width).
+    refine: simulation-error refinement (None: when some unknown enters nonlinearly).
+    noise: the sensors' noise std (positions, rates) where known; None estimates whether
+        there is noise (`regression.NOISY`) and the rates' std (`regression.rate_sigma`).
+    """
+    base_model = as_model(model)
+    setting = friction_setting(base_model, friction)
+    full = with_friction(base_model, setting, width)
+    cat = catalogue(full)
+    names = list(cat.defaults)
+    unknown = _unknown(base_model, unknown) + [
+        p for c, kind in setting.items() for p, k in zip(friction_names(c), ("viscous", "coulomb"))
+        if k in kind
+    ]  # fmt: skip
+    values = dict(cat.defaults) | _given(full, given)
+    rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)
+    reg = Regressor(full, unknown)
+    lin = list(reg.linear)
+    p = np.array([values[k] for k in names])
+    rows = regression.build_rows(reg, rec, p, window, span)
+    W = regression.random_regressor(reg, rec, p, seed)
+    b = estimate.base(W, estimate.preference(lin, cat.units))
+    fit = _fit(rows, lin, b, values, full)
+    fitted = _fitted(rows, rec, lin, b, fit)
+    if refine is None:
+        refine = bool(reg.nonlinear)
+    if refine:
+        fit = _refine(full, rec, fit, list(reg.nonlinear) + [lin[i] for i in b.independent])
+    out = _result(base_model, full, setting, unknown, reg, b, fit)
+    out.fitted = fitted
+    return out
+
+
+def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
+    theta = np.array([fit.theta[k] for k in lin])
+    times = rows.time.reshape(-1, rows.n_eq)[:, 0]
+    scale = (len(rec.t) - 1) / max(times.max() + 1, 1)
+    return {
+        "time": rec.t[0] + (times + 0.5) * scale * rec.h,
+        "measured": rows.y.reshape(-1, rows.n_eq),
+        "predicted": (rows.A @ theta).reshape(-1, rows.n_eq),
+    }
+
+
+# ---- arguments ---------------------------------------------------------------------------
+def _unknown(model, unknown) -> list[str]:
+    names = list(catalogue(model).defaults)
+    if unknown is None:
+        unknown = inertial(model)
+        if not unknown:
+            raise ValueError(f"{model.name} has no inertial parameters; name the unknowns.")
+    if isinstance(unknown, str):
+        unknown = [unknown]
+    for name in unknown:
+        if name not in names:
+            close = difflib.get_close_matches(str(name), names, n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ValueError(
+                f"unknown: {model.name} has no parameter {name!r}.{hint} Known: {', '.join(names)}."
+            )
+    if len(set(unknown)) != len(unknown):
+        raise ValueError(f"unknown: repeated names in {list(unknown)}.")
+    return [n for n in names if n in unknown]  # model order
+
+
+def _given(model, given) -> dict[str, float]:
+    given = dict(given or {})
+    for name in given:
+        known = list(catalogue(model).defaults)
+        if name not in known:
+            close = difflib.get_close_matches(str(name), known, n=1)
+            hint = f" Did you mean {close[0]!r}?" if close else ""
+            raise ValueError(f"given: {model.name} has no parameter {name!r}.{hint}")
+    return {k: float(v) for k, v in given.items()}
+
+
+# ---- the fit -----------------------------------------------------------------------------
+@dataclass
+class Fit:
+    theta: dict[str, float]  # every parameter of the (friction) model
+    std: dict[str, float]  # estimated unknowns
+    beta: np.ndarray
+    beta_std: np.ndarray
+    residual_rms: np.ndarray  # per coordinate
+    condition: float
+    violated: list[str]
+    weak: dict = field(default_factory=dict)  # name -> why (refinement's flat directions)
+
+
+def _lower(full, names: list[str], values: dict) -> dict[str, float]:
+    """Lower bounds of the physical unknowns: positive parameters above 1e-9 x their given
+    value (so the model still compiles), friction coefficients at 0."""
+    cat = catalogue(full)
+    out = {}
+    for name in names:
+        if name.startswith(("viscous_", "coulomb_")) and cat.units[name].startswith("force"):
+            out[name] = 0.0
+        elif cat.positive[name]:
+            out[name] = 1e-9 * abs(values[name]) if values[name] else 1e-12
+    return out
+
+
+def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fit:
+    I, D, K = b.independent, b.dependent, b.K
+    theta_D = np.array([values[lin[d]] for d in D])
+    A, y = rows.A[:, I], rows.y  # A theta = A_I (theta_I + K theta_D) = A_I beta
+    violated: list[str] = []
+
+    def noise(w_eq):
+        if rows.noise is None:
+            return None, None
+        CA, cy = rows.noise
+        return (np.einsum("e,ekl->kl", w_eq**2, CA[:, I][:, :, I]),
+                np.einsum("e,ek->k", w_eq**2, cy[:, I]))  # fmt: skip
+
+    ones = np.ones(rows.n_eq)
+    first = estimate.compensated(A, y, *noise(ones))
+    if first is None:  # the noise outweighs the signal in some direction: fit as it is
+        violated.append(
+            "the record's rate noise exceeds its signal in some direction: "
+            "no errors-in-variables compensation (expect estimates shrunk)"
+        )
+        first = (A, y, A.T @ A)
+        rows.noise = None
+    beta, _ = estimate.scaled_lstsq(*first[:2])
+    r = y - A @ beta
+    sigma = np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
+    w_eq = 1.0 / np.maximum(sigma, 1e-12 * max(sigma.max(), 1e-300))
+    weighted = estimate.compensated(A * w_eq[rows.equation][:, None], y * w_eq[rows.equation],
+                                    *noise(w_eq))  # fmt: skip
+    if weighted is None:  # weighting made the noise outweigh a direction: equal weights
+        w_eq = ones
+        weighted = first
+    w = w_eq[rows.equation]
+    Aw, yw = A * w[:, None], y * w
+    R, z, gram = weighted
+    beta, cond = estimate.scaled_lstsq(R, z)
+
+    def theta_of(beta_):
+        return values | dict(zip([lin[i] for i in I], beta_ - K @ theta_D))
+
+    lower = _lower(full, lin, values)
+    bodies = estimate.bodies(list(values))
+    unphysical = estimate.violations(theta_of(beta), lower, bodies)
+    violated += unphysical
+    if unphysical:
+        lower_I = np.array([lower.get(lin[i], -np.inf) for i in I]) + K @ theta_D
+        checks = _inertia_checks(bodies, theta_of) if any(
+            set(axes.values()) & set(lin) for axes in bodies.values()
+        ) else None  # fmt: skip
+        beta = estimate.constrained_fit(R, z, beta, lower_I, checks)
+    cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
+    beta_std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    theta = theta_of(beta)
+    std = {lin[i]: float(s) for i, s in zip(I, beta_std)}
+    return Fit(theta, std, beta, beta_std, _residual_rms(rows, y - A @ beta), cond, violated)
+
+
+def _inertia_checks(bodies: dict, theta_of):
+    def checks(beta):
+        theta = theta_of(beta)
+        out = []
+        for axes in bodies.values():
+            ev = np.linalg.eigvalsh(estimate.inertia_matrix(axes, theta.__getitem__))
+            out += [ev[0], ev[0] + ev[1] - ev[2]]
+        return np.array(out)
+
+    return checks
+
+
+def _residual_rms(rows: regression.Rows, r: np.ndarray) -> np.ndarray:
+    """Rms residual per coordinate (projected residuals mapped back by the null spaces)."""
+    if rows.to_coordinates is None:
+        return np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
+    by_time = r.reshape(-1, rows.n_eq)
+    coords = np.einsum("bnr,br->bn", rows.to_coordinates, by_time)
+    return np.sqrt(np.mean(coords**2, axis=0))
+
+
+def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
+    """Every parameter in `names` refitted by simulation error: the model stepped from the
+    record's states over segments of SEGMENT s with the recorded inputs, its positions
+    against the record's (multiple shooting), by `scipy.optimize.least_squares`."""
+    from scipy.optimize import least_squares
+
+    system = model.compile(**fit.theta)
+    h, T, n = rec.h, len(rec.t), len(catalogue(model).coordinates)
+    S = max(2, int(round(SEGMENT / h)))
+    starts = np.arange(0, T - 1 - S, S)
+    if len(starts) < 1:
+        raise ValueError(f"data: too short for a simulation segment of {SEGMENT} s.")
+    qd = rec.qd if rec.qd is not None else savgol_filter(rec.q, 11, POLYORDER, deriv=1,
+                                                         delta=h, axis=0)  # fmt: skip
+    X0 = np.hstack([rec.q[starts], qd[starts]])
+    measured = np.stack([rec.q[starts + j + 1] for j in range(S)])
+    scale = np.maximum(rec.q.std(0), 1e-6)
+    z0 = np.array([fit.theta[k] for k in names])
+    zscale = np.maximum(np.abs(z0), 1e-6)
+
+    def residual(z):
+        try:
+            s = system.with_parameters(**dict(zip(names, (z * zscale).tolist())))
+            x, out = X0, []
+            for j in range(S):
+                x = s.step(x, rec.u[starts + j], dt=h, substeps=2, t=rec.t[starts + j])
+                out.append(x[:, :n])
+        except ValueError:
+            return np.full(measured.size, 1e3)
+        return ((np.stack(out) - measured) / scale).ravel()
+
+    sol = least_squares(residual, z0 / zscale, x_scale=1.0, method="trf")
+    J = sol.jac
+    dof = max(sol.fun.size - len(z0), 1)
+    cov = np.linalg.pinv(J.T @ J) * (sol.fun @ sol.fun) / dof
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0)) * zscale
+    z = sol.x * zscale
+    _, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    weak = {}
+    for s_i, v in zip(sv, Vt):  # directions the simulated record does not see
+        if s_i > FLAT * sv[0]:
+            continue
+        d = v * zscale / np.abs(v * zscale).max()  # the direction in the parameters' units
+        involved = [j for j in range(len(names)) if abs(d[j]) > 0.05]
+        combo = " + ".join(f"{d[j]:.3g} d{names[j]}" for j in involved)
+        for j in involved:  # the start fits the record as well: kept, never moved along it
+            z[j] = z0[j]
+            weak[names[j]] = (f"the record does not change along {combo} (simulation "
+                              f"error); held at {z0[j]:.6g}")  # fmt: skip
+    theta = fit.theta | dict(zip(names, z.tolist()))
+    return Fit(theta, fit.std | dict(zip(names, std.tolist())), fit.beta, fit.beta_std,
+               fit.residual_rms, fit.condition, fit.violated, weak)  # fmt: skip
+
+
+def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit):
+    lin = list(reg.linear)
+    I, D, K = b.independent, b.dependent, b.K
+    combos = [estimate.combination(lin, b, i) for i in range(len(I))]
+    base = {}
+    base_std = {}
+    for i, text in enumerate(combos):
+        theta_D = np.array([fit.theta[lin[d]] for d in D])
+        base[text] = float(fit.theta[lin[I[i]]] + K[i] @ theta_D)
+        base_std[text] = float(fit.std.get(lin[I[i]], np.nan))
+    unidentifiable = {}
+    for j, d in enumerate(D):
+        where = [combos[i] for i in range(len(I)) if K[i, j] != 0.0]
+        how = f"enters only through {'; '.join(where)}" if where else "does not enter the equations"
+        unidentifiable[lin[d]] = f"{how}; held at its given value {fit.theta[lin[d]]:.6g}"
+    unidentifiable |= fit.weak
+    std = {k: float(fit.std.get(k, np.nan)) for k in unknown}
+    for k in unidentifiable:
+        std[k] = float("nan")
+    friction = {
+        c: {kind: float(fit.theta[name])
+            for kind, name in zip(("viscous", "coulomb"), friction_names(c)) if name in fit.theta}
+        for c in setting
+    }  # fmt: skip
+    parameters = {k: float(fit.theta[k]) for k in catalogue(base_model).defaults}
+    return Identification(
+        parameters=parameters,
+        std=std,
+        base=base,
+        base_std=base_std,
+        unidentifiable=unidentifiable,
+        nonlinear=tuple(reg.nonlinear),
+        friction=friction,
+        residual_rms=dict(zip(catalogue(full).coordinates, map(float, fit.residual_rms))),
+        condition=float(fit.condition),
+        violated=list(fit.violated),
+        unknown=tuple(unknown),
+    )

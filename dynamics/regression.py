@@ -1,0 +1,306 @@
+"""The regression of `dynamics.identify`: a record checked, its signals, and the rows
+A theta = y built from it (the momentum form over windows for unconstrained models, the
+projected acceleration form for constrained ones), with the rate noise's expected second
+moments for the errors-in-variables compensation (see `dynamics.identify`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from .regressor import Regressor
+
+WINDOW = 0.1
+"""Savitzky-Golay window (s) for rates from positions when none is given."""
+SMOOTH = 0.3
+"""Savitzky-Golay window (s) of a noisy record's accelerations (constrained models) when
+none is given: the noise of (s(t1) - s(t0)) / h falls as the window's -3/2 power; on the
+rolling disk (sensor noise 1e-2 rad/s) 0.1 s left the rates' noise above the signal of
+some combinations, 0.3 s fitted within 1.2 %."""
+SPAN = 0.1
+"""Integration window (s) of a row of the momentum form."""
+NOISY = 1e-2
+"""Rms of q(t1) - q(t0) - h (q'(t0) + q'(t1)) / 2 over that of h q' above which a record is
+taken to carry measurement noise (noise-free records at 100 Hz: about 1e-4 or less)."""
+RANDOM_STATES = 200
+"""States on which the base parameters are found."""
+POLYORDER = 3
+
+
+@dataclass(frozen=True)
+class Record:
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray | None
+    u: np.ndarray
+    h: float
+    noise: tuple[float, float] | None = None
+
+
+def check_record(data, n: int, nu: int, noise=None) -> Record:
+    """The record's arrays, checked: shapes, finite values, uniform sampling."""
+    if not hasattr(data, "__getitem__") or not hasattr(data, "keys"):
+        raise TypeError(f"data must be a mapping with t, q, [qd,] u; got {type(data).__name__}.")
+    missing = [k for k in ("t", "q", "u") if k not in data.keys()]
+    if missing:
+        raise ValueError(f"data: missing {', '.join(missing)} (needs t, q, [qd,] u).")
+    t = np.asarray(data["t"], dtype=float)
+    T = len(t)
+    arrays = {"q": (T, n), "u": (T, nu)} | ({"qd": (T, n)} if "qd" in data.keys() else {})
+    got = {}
+    for key, shape in arrays.items():
+        a = np.asarray(data[key], dtype=float)
+        if a.ndim == 1 and shape[1] == 1:
+            a = a[:, None]
+        if a.shape != shape:
+            raise ValueError(f"data[{key!r}]: expected shape {shape}, got {a.shape}.")
+        got[key] = a
+    if t.ndim != 1 or T < 20:
+        raise ValueError(f"data['t']: expected at least 20 samples in one axis, got {t.shape}.")
+    for key, a in [("t", t), *got.items()]:
+        if not np.isfinite(a).all():
+            raise ValueError(f"data[{key!r}] contains NaN or inf.")
+    dt = np.diff(t)
+    h = float(np.mean(dt))
+    if not h > 0 or np.abs(dt - h).max() > 1e-6 * h:
+        raise ValueError("data['t'] must be increasing with a uniform step (resample first).")
+    if noise is not None:
+        noise = tuple(float(v) for v in noise)
+        if len(noise) != 2 or not all(v >= 0 and math.isfinite(v) for v in noise):
+            raise ValueError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
+    return Record(t, got["q"], got.get("qd"), got["u"], h, noise)
+
+
+# ---- rows of the regression --------------------------------------------------------------
+@dataclass
+class Rows:
+    """The stacked regression A theta = y: rows with their equation and time indices."""
+
+    A: np.ndarray  # (R, k)
+    y: np.ndarray  # (R,)
+    equation: np.ndarray  # (R,) int: the equation (coordinate, or projected equation)
+    time: np.ndarray  # (R,) int: the window or interval
+    lag: int  # neighbouring times whose residuals correlate
+    to_coordinates: np.ndarray | None  # (times, n, n - m): projected -> coordinates
+    n_eq: int
+    # per equation: E[a a^T] and E[a e] of the rate noise in a row (a: its regressor noise,
+    # e: its target noise), summed over the equation's rows; None for a noise-free record
+    noise: tuple | None = None
+
+
+def is_noisy(rec: Record) -> bool:
+    """Whether positions and rates disagree beyond integration error (see NOISY)."""
+    if rec.qd is None:
+        return True
+    if rec.noise is not None:
+        return max(rec.noise) > 0
+    gap = rec.q[1:] - rec.q[:-1] - rec.h * (rec.qd[1:] + rec.qd[:-1]) / 2
+    return bool(np.sqrt(np.mean(gap**2)) > NOISY * rec.h * np.sqrt(np.mean(rec.qd**2)))
+
+
+def signals(rec: Record, window: int | None, constrained: bool) -> tuple:
+    """(q, qd, u, window used, noisy): the signals the rows are built from."""
+    h, noisy = rec.h, is_noisy(rec)
+    default = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
+    if window is not None and window != 0 and (window % 2 == 0 or window <= POLYORDER):
+        raise ValueError(
+            f"window must be 0 or an odd number of samples > {POLYORDER}, got {window}."
+        )
+    if rec.qd is None:  # rates by the filter's derivative; accelerations smooth the rest too
+        w = window or default
+        qd = savgol_filter(rec.q, w, POLYORDER, deriv=1, delta=h, axis=0)
+        if not constrained:
+            return rec.q, qd, rec.u, w, noisy
+        q = savgol_filter(rec.q, w, POLYORDER, axis=0)
+        return q, qd, savgol_filter(rec.u, w, POLYORDER, axis=0), w, noisy
+    if window is None:  # the momentum form averages noise itself; accelerations need it
+        smooth = max(2 * int(round(SMOOTH / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
+        window = smooth if (noisy and constrained) else 0
+    if window == 0:
+        return rec.q, rec.qd, rec.u, 0, noisy
+    smooth = [savgol_filter(a, window, POLYORDER, axis=0) for a in (rec.q, rec.qd, rec.u)]
+    return *smooth, window, noisy
+
+
+def midpoints(q, qd, h, hermite: bool):
+    """States at the intervals' midpoints: cubic Hermite from both ends (rates by its
+    derivative where the record is exact, by the mean of the ends where it is noisy)."""
+    qm = (q[:-1] + q[1:]) / 2 + h * (qd[:-1] - qd[1:]) / 8
+    if hermite:
+        qdm = 1.5 * (q[1:] - q[:-1]) / h - (qd[:-1] + qd[1:]) / 4
+    else:
+        qdm = (qd[:-1] + qd[1:]) / 2
+    return np.hstack([qm, qdm])
+
+
+def build_rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
+    constrained = reg._m.N_C > 0
+    q, qd, u, w, noisy = signals(rec, window, constrained)
+    h, t = rec.h, rec.t
+    X = np.hstack([q, qd])
+    mid = midpoints(q, qd, h, hermite=not noisy and w == 0)
+    lag = int(np.ceil(w / max(span or 1, 1))) + 1
+    if constrained:
+        qdd = (qd[1:] - qd[:-1]) / h
+        rows = acceleration_rows(reg, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
+        if noisy and rec.qd is not None:
+            rows.noise = acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
+        return rows
+    L = span or max(1, int(round(SPAN / h)))
+    n_win = (len(t) - 1) // L
+    if n_win < 2:
+        raise ValueError(f"data: {len(t)} samples make fewer than 2 windows of {L}.")
+    k = slice(0, n_win * L)
+    P, p0, G0, g0 = reg.momentum(t, X, u, p)
+    _, _, G1, g1 = reg.momentum(t[1:], X[1:], u[:-1], p)
+    _, _, Gm, gm = reg.momentum(t[:-1] + h / 2, mid, u[:-1], p)
+    IG = h / 6 * (G0[:-1] + 4 * Gm + G1)[k]
+    Ig = h / 6 * (g0[:-1] + 4 * gm + g1)[k]
+    n, nk = P.shape[1], P.shape[2]
+    ends = np.arange(0, n_win + 1) * L
+    A = (P[ends[1:]] - P[ends[:-1]] - IG.reshape(n_win, L, n, nk).sum(1)) / (L * h)
+    y = -(p0[ends[1:]] - p0[ends[:-1]] - Ig.reshape(n_win, L, n).sum(1)) / (L * h)
+    eq = np.tile(np.arange(n), n_win)
+    time = np.repeat(np.arange(n_win), n)
+    compensate = noisy and (w == 0 or rec.qd is None)
+    noise = rate_noise(reg, rec, t, X, u, p, ends, L * h, w) if compensate else None
+    return Rows(A.reshape(-1, nk), y.reshape(-1), eq, time, lag, None, n, noise)
+
+
+def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s, w: int = 0):
+    """Second moments of the rate noise in the momentum rows, for bias compensation.
+
+    A row's regressor and target hold the momenta at the window's ends, which are linear in
+    the measured rates: noise n of std sigma_i in rate i puts J_i n into the row
+    (J_i = dP/dqd_i, and dp0/dqd_i in the target), so least squares on noisy rows
+    converges to (A^T A + E[N^T N])^-1 (A^T y + E[N^T e]), shrunk towards zero (errors in
+    variables). The fit subtracts these expectations. sigma_i is estimated from the record
+    (the rate's rms departure from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the
+    filter's centre weight)."""
+    n = reg.n_q
+    sigma = rate_sigma(rec, w)
+    Xe, te, ue = X[ends], t[ends], u[ends]
+    P, p0, _, _ = reg.momentum(te, Xe, ue, p)
+    k = P.shape[2]
+    CA, cy = np.zeros((n, k, k)), np.zeros((n, k))
+    for i in range(n):
+        Xi = Xe.copy()
+        Xi[:, n + i] += 1.0
+        Pi, pi0, _, _ = reg.momentum(te, Xi, ue, p)
+        J, j0 = (Pi - P) / span_s, -(pi0 - p0) / span_s  # per end: (ends, n, k), (ends, n)
+        both = [slice(1, None), slice(None, -1)]  # every window has an end and a start
+        for sl in both:
+            CA += sigma[i] ** 2 * np.einsum("bek,bel->ekl", J[sl], J[sl])
+            cy += sigma[i] ** 2 * np.einsum("bek,be->ek", J[sl], j0[sl])
+    return CA, cy
+
+
+def rate_sigma(rec: Record, w: int = 0) -> np.ndarray:
+    """The rates' noise std: given, or estimated from the record (a signal's rms departure
+    from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the filter's centre weight).
+    Without recorded rates, those of the filter's derivative (window w) of positions with
+    noise sigma_q: sigma_q sqrt(sum d_j^2) / h, d its weights."""
+    from scipy.signal import savgol_coeffs
+
+    def measured(a):
+        v = max(2 * int(round(WINDOW / rec.h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
+        c0 = savgol_coeffs(v, POLYORDER)[v // 2]
+        r = a - savgol_filter(a, v, POLYORDER, axis=0)
+        return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
+
+    n = rec.q.shape[1]
+    if rec.qd is not None:
+        return np.full(n, rec.noise[1]) if rec.noise is not None else measured(rec.qd)
+    sigma_q = np.full(n, rec.noise[0]) if rec.noise is not None else measured(rec.q)
+    d = savgol_coeffs(w, POLYORDER, deriv=1)
+    return sigma_q * np.sqrt(np.sum(d**2)) / rec.h
+
+
+def acceleration_noise(reg, rec: Record, T, X, QDD, U, p, w: int):
+    """Second moments of the rate noise in the acceleration rows (as `_rate_noise` for the
+    momentum form). With the rates smoothed by a filter of weights c (window w, or none),
+    q'' = (s(t1) - s(t0)) / h carries noise of variance sigma^2 sum (c_j - c_(j-1))^2 / h^2
+    and the midpoint rate (s(t0) + s(t1)) / 2 noise of variance sigma^2 sum ((c_j +
+    c_(j-1)) / 2)^2, uncorrelated with the first (stationary noise). The rows are linear in
+    q'' and, through the gyroscopic and centripetal terms, depend on the rates: both enter
+    by their Jacobians (the rates' by central differences)."""
+    from scipy.signal import savgol_coeffs
+
+    c = savgol_coeffs(w, POLYORDER) if w else np.ones(1)
+    padded = np.concatenate([[0.0], c, [0.0]])
+    sigma2 = rate_sigma(rec) ** 2
+    var_qdd = sigma2 * np.sum(np.diff(padded) ** 2) / rec.h**2
+    var_qd = sigma2 * np.sum(((padded[1:] + padded[:-1]) / 2) ** 2)
+    n = reg.n_q
+    B, _, _ = reg.constraints(T, X, p)
+    Nsp = null_spaces(B)
+
+    def projected(Xa, QDDa):
+        Y, y0 = reg.acceleration(T, Xa, QDDa, U, p)
+        return np.einsum("bnr,bnk->brk", Nsp, Y), -np.einsum("bnr,bn->br", Nsp, y0)
+
+    zero = np.zeros_like(QDD)
+    A0, b0 = projected(X, zero)
+    r, k = A0.shape[1], A0.shape[2]
+    CA, cy = np.zeros((r, k, k)), np.zeros((r, k))
+    for i in range(n):
+        e = zero.copy()
+        e[:, i] = 1.0
+        Ai, bi = projected(X, e)
+        J, j0 = Ai - A0, bi - b0
+        CA += var_qdd[i] * np.einsum("brk,brl->rkl", J, J)
+        cy += var_qdd[i] * np.einsum("brk,br->rk", J, j0)
+        step = 1e-4 * max(1.0, float(np.abs(X[:, n + i]).max()))
+        Xp, Xm = X.copy(), X.copy()
+        Xp[:, n + i] += step
+        Xm[:, n + i] -= step
+        (Ap, bp), (Am, bm) = projected(Xp, QDD), projected(Xm, QDD)
+        J, j0 = (Ap - Am) / (2 * step), (bp - bm) / (2 * step)
+        CA += var_qd[i] * np.einsum("brk,brl->rkl", J, J)
+        cy += var_qd[i] * np.einsum("brk,br->rk", J, j0)
+    return CA, cy
+
+
+def null_spaces(B: np.ndarray) -> np.ndarray:
+    """(N, n, n - m): orthonormal bases of the null spaces of B (N, m, n)."""
+    m = B.shape[1]
+    _, _, Vt = np.linalg.svd(B)
+    return np.swapaxes(Vt[:, m:, :], 1, 2)
+
+
+def acceleration_rows(reg, T, X, QDD, U, p, w) -> Rows:
+    Y, y0 = reg.acceleration(T, X, QDD, U, p)
+    B, _, _ = reg.constraints(T, X, p)
+    Nsp = null_spaces(B)
+    A = np.einsum("bnr,bnk->brk", Nsp, Y)
+    y = -np.einsum("bnr,bn->br", Nsp, y0)
+    times, r = A.shape[0], A.shape[1]
+    eq = np.tile(np.arange(r), times)
+    time = np.repeat(np.arange(times), r)
+    return Rows(A.reshape(-1, A.shape[2]), y.reshape(-1), eq, time, max(w, 1), Nsp, r)
+
+
+def random_regressor(reg: Regressor, rec: Record, p, seed: int) -> np.ndarray:
+    """The (projected) acceleration form on random states spanning the record's range."""
+    rng = np.random.default_rng(seed)
+    S, n = RANDOM_STATES, reg.n_q
+    lo, hi = rec.q.min(0), rec.q.max(0)
+    spread = np.maximum(hi - lo, 1e-3 * np.maximum(np.abs(hi), 1.0))
+    q = lo + (hi - lo) / 2 + spread * (rng.random((S, n)) - 0.5)
+    qd = rng.normal(size=(S, n))
+    qdd = rng.normal(size=(S, n))
+    T = rec.t[0] + (rec.t[-1] - rec.t[0]) * rng.random(S)
+    U = rng.normal(size=(S, reg.n_u)) * (1.0 + rec.u.std(0))
+    if reg._m.N_C:
+        B, b, _ = reg.constraints(T, np.hstack([q, qd]), p)
+        Nsp = null_spaces(B)
+        qd = np.einsum("bnr,bmr,bm->bn", Nsp, Nsp, qd)
+        qd -= np.einsum("bnm,bm->bn", np.linalg.pinv(B), b)
+        B, _, gamma = reg.constraints(T, np.hstack([q, qd]), p)
+        qdd = np.einsum("bnr,bmr,bm->bn", Nsp, Nsp, qdd)
+        qdd += np.einsum("bnm,bm->bn", np.linalg.pinv(B), gamma)
+    rows = acceleration_rows(reg, T, np.hstack([q, qd]), qdd, U, p, 1)
+    return rows.A
