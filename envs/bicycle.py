@@ -44,10 +44,10 @@ speed-scheduled LQR on (phi, delta, phi', delta') from the constraint-reduced li
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | T_delta | 5 |
-| 1 | T_R | 10 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | T_delta | 5 | N*m |
+| 1 | T_R | 10 | N*m |
 
 ## Observation Space
 `Box(low, high, (8,), float32)`:
@@ -70,8 +70,8 @@ actions raise ValueError, complex ones TypeError.
 | alive | 1 | 1 | 1 per step |
 | lean | -0.6169 | 0 | -phi^2 |
 | steer | -0.2467 | 0 | -0.1 delta^2 |
-| speed | -3 | 0 | -|v - v*|, at most 3 |
-| effort | -0.002 | 0 | -0.001 |action|^2 |
+| speed | -3 | 0 | -\\|v - v*\\|, at most 3 |
+| effort | -0.002 | 0 | -0.001 \\|action\\|^2 |
 
 ## Rewards
 On the state after the step, the sum of `alive` = 1, `lean` = -phi^2, `steer` =
