@@ -71,8 +71,8 @@ pay, -13.6), so ending early never pays. Truncation: 500 steps (25 s).
 `info["is_success"]`: both links within 0.2 rad of inverted and both rates below 1 rad/s.
 
 ## Arguments
-`gymnasium.make("Lagrange/Acrobot-v2", **options)` with the env options and the parameters
-of `two_link_arm` by name (the table of the site's page lists them with their defaults).
+`gymnasium.make(id, **options)` with the env options and the parameters of `two_link_arm`
+by name (each version's page on the documentation site lists them with their defaults).
 Integration (`integrator="dop853"`, or `"rk4"`): 4 fixed steps of DOP853's eighth-order method
 per 50 ms step (48 evaluations, chosen so that swung-up states step as accurately as with the
 former RK4 x25); an unforced episode from the starting distribution keeps the energy within

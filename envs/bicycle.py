@@ -112,6 +112,7 @@ import numpy as np
 
 from dynamics.bicycle import DEPENDENT_RATES, bicycle_system, upright_state
 
+from . import rendering_bicycle
 from .task import Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 
 SPEED_RANGE = (2.0, 6.0)
@@ -214,6 +215,11 @@ def on_ground(system, x: np.ndarray, speed: float) -> np.ndarray:
     return x
 
 
+def draw(surface, x, g, p, history):
+    track = None if history is None else [(h[0], h[1]) for h in history]
+    rendering_bicycle.draw_bicycle(surface, x, g[0], p, track)
+
+
 def start(rng, p):
     system = _system_for(p)
     v_star = rng.uniform(*SPEED_RANGE)
@@ -276,6 +282,7 @@ TASK = Task(
     substeps=1,
     integrator="dop853",
     max_episode_steps=300,
+    draw=draw,
     # plain LQR cannot drop the pitch and yaw rate exactly (they follow lean and steer
     # through the constraints), and refuses; the heuristic is the constraint-reduced LQR
     lqr=LQRHints(
