@@ -23,9 +23,11 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 # what makes a browser fetch: <script src>, <link href> (style sheets, fonts, icons,
-# preloads), <img src>, CSS url() and @import
+# preloads; not rel="canonical", "alternate", "prev" or "next", which only name a page),
+# <img src>, CSS url() and @import
 FETCHES = re.compile(
-    r"<script[^>]*\ssrc=[\"']([^\"']+)|<link[^>]*\shref=[\"']([^\"']+)"
+    r"<script[^>]*\ssrc=[\"']([^\"']+)"
+    r"|<link(?![^>]*\srel=[\"']?(?:canonical|alternate|prev|next)\b)[^>]*\shref=[\"']([^\"']+)"
     r"|<img[^>]*\ssrc=[\"']([^\"']+)|url\(\s*[\"']?([^\"')]+)|@import\s+[\"']([^\"']+)",
     re.I,
 )

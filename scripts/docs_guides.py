@@ -45,16 +45,17 @@ def citation() -> str:
 
 
 def model_source(description: str) -> str:
-    """The line that cites where a model comes from: the chapter's sections and problems
-    its description names, or the chapter's method where it names none."""
-    found = sorted(set(re.findall(r"\b7[./]\d+\b", description)))
-    named = [
-        f"section {n} ({SECTIONS[n]})" if n in SECTIONS else f"problem {n}"
-        for n in found
-        if not re.fullmatch(r"7\.\d{2,}", n)  # an equation number, e.g. 7.36, is no section
-    ]
-    where = ", ".join(named) if named else "its method (section 7.1), beyond the chapter's examples"
-    return f"*Source*: {CHAPTER}, {where}; see [the home page](../index.md) for the citation."
+    """The line that cites where a model comes from: the chapter's sections, figures,
+    equations and problems its description names, or the chapter's procedure where it
+    names none."""
+    named = re.findall(r"(?:[Ss]ection|[Pp]roblem|Fig\.|eqs?\.)\s*(?:\(7[./-]\d+\)|7[./-]\d+)", description)
+    refs = list(dict.fromkeys(" ".join(n.split()).replace("Problem", "problem") for n in named))
+    where = (
+        f"as its description cites it: {', '.join(refs)}"
+        if refs
+        else "formulated by the chapter's procedure (section 7.1)"
+    )
+    return f"*Source*: {CHAPTER}, {where}; [the home page](../index.md) has the citation."
 
 
 # ---- an env's arguments ------------------------------------------------------------------
@@ -156,7 +157,7 @@ def version_note(env_id: str, versions: list[str], current: tuple[str, ...], doc
             f"written for {newest}" + (" (this version's differences first)." if doc else "."),
             "",
         ]
-    if doc:
+    if doc and env_id != newest:  # the current version's text is the module's docstring
         lines += [f'!!! note "About {env_id}"', f"    {doc}", ""]
     return "\n".join(lines)
 

@@ -416,6 +416,7 @@ def env_page(env_id: str, anim: dict) -> str:
     module, doc = documented(task)
     summary, parts = sections(escape_text(doc))
     summary = re.sub(rf"^{re.escape(name)}-v\d+[^:]*: ", "", summary)  # the title names it
+    summary = summary[:1].upper() + summary[1:]
     facts = env_facts(env_id)
     model = model_name(task)
     versions = [i for i in env_ids() if i.rsplit("-v", 1)[0] == name]
@@ -739,7 +740,7 @@ def on_config(config):
     """The navigation: mkdocs.yml's (home and the guides), then the generated sections."""
     if sys.path[0] != str(ROOT):  # mkdocs restores sys.path after loading this file
         sys.path.insert(0, str(ROOT))
-    config["nav"] = list(config["nav"] or []) + [
+    config["nav"] = list(config.get("nav") or []) + [
         {"Environments": ["envs/index.md"] + [{i: f"envs/{slug(i)}.md"} for i in env_ids()]},
         {"Models": ["models/index.md"] + [{m: f"models/{m}.md"} for m in model_names()]},
         {"API reference": [{m: f"reference/{m}.md"} for m in modules()]},
