@@ -48,7 +48,8 @@ def model_source(description: str) -> str:
     """The line that cites where a model comes from: the chapter's sections, figures,
     equations and problems its description names, or the chapter's procedure where it
     names none."""
-    named = re.findall(r"(?:[Ss]ection|[Pp]roblem|Fig\.|eqs?\.)\s*(?:\(7[./-]\d+\)|7[./-]\d+)", description)
+    cited = r"(?:[Ss]ection|[Pp]roblem|Fig\.|eqs?\.)\s*(?:\(7[./-]\d+\)|7[./-]\d+)"
+    named = re.findall(cited, description)
     refs = list(dict.fromkeys(" ".join(n.split()).replace("Problem", "problem") for n in named))
     where = (
         f"as its description cites it: {', '.join(refs)}"
