@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import functools
 import importlib
 import re
 import sys
@@ -123,18 +124,25 @@ def input_units(task: Task) -> dict[str, str]:
     some coordinate has a dimensionless coefficient (Q = u, -u, u cos q, ...) is a torque
     where that coordinate is an angle and a force where it is a length; inputs with no
     such coordinate (or a model given as a compiled System) are left out."""
+    try:
+        return dict(_units(task.model))
+    except TypeError:  # a model object that cannot be a cache key
+        return dict(_units.__wrapped__(task.model))
+
+
+@functools.lru_cache(maxsize=64)
+def _units(model) -> tuple[tuple[str, str], ...]:
     import sympy as sp
 
     import dynamics
 
-    model = task.model
     if isinstance(model, str):
         model = dynamics.get_model(model)
     elif callable(model) and not isinstance(model, dynamics.Model):
         model = dynamics.Model(model)
     spec = getattr(model, "spec", None)
     if spec is None:
-        return {}
+        return ()
     parameters = set(spec.parameters)
     angle = coordinate_kinds(spec)
     units = {}
@@ -144,7 +152,7 @@ def input_units(task: Task) -> dict[str, str]:
             if c != 0 and not (c.free_symbols & parameters):
                 units[str(u)] = "N*m" if angle.get(q, True) else "N"
                 break
-    return units
+    return tuple(units.items())
 
 
 def tables(plant: Plant) -> str:

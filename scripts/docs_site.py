@@ -137,6 +137,12 @@ def documented(task) -> tuple[str, str]:
     return module.__name__, document(inspect.getdoc(module) or "", task)
 
 
+@functools.cache
+def documented_id(env_id: str) -> tuple[str, str]:
+    """`documented(task_of(env_id))`, once per build."""
+    return documented(task_of(env_id))
+
+
 # ---- Markdown formatting -----------------------------------------------------------------
 def escape_text(markdown: str) -> str:
     """Docstring prose as Markdown: outside code, a '*' (N*m, theta1*) is literal unless it
@@ -413,7 +419,7 @@ def env_page(env_id: str, anim: dict) -> str:
     task = task_of(env_id)
     spec = gym.spec(env_id)
     name = env_id.rsplit("-v", 1)[0]
-    module, doc = documented(task)
+    module, doc = documented_id(env_id)
     summary, parts = sections(escape_text(doc))
     summary = re.sub(rf"^{re.escape(name)}-v\d+[^:]*: ", "", summary)  # the title names it
     summary = summary[:1].upper() + summary[1:]
@@ -642,7 +648,7 @@ def envs_index(anims: dict[str, dict]) -> str:
     ]
     for env_id in env_ids():
         task = task_of(env_id)
-        summary = sections(documented(task)[1])[0].split(":", 1)[-1].strip()
+        summary = sections(documented_id(env_id)[1])[0].split(":", 1)[-1].strip()
         summary = escape_text(" ".join(summary.split()))
         facts = env_facts(env_id)
         model = model_name(task)
