@@ -173,9 +173,14 @@ exact Jacobians evaluated in floating point leave rounding residue (1e-33, -0.0)
 symbolic entry is zero."""
 
 
-def number(v: float, scale: float = 1.0, digits: int = 4) -> str:
-    """`v` to `digits` significant digits; 0 (never -0) below NOISE x `scale`."""
-    if abs(v) < NOISE * max(scale, 1.0):
+EIGEN_NOISE = 1e-7
+"""The same for eigenvalues: a repeated eigenvalue (the bicycle's zero ones) splits by about
+the square root of the rounding error, 1.5e-8 relative, in floating point."""
+
+
+def number(v: float, scale: float = 1.0, digits: int = 4, noise: float = NOISE) -> str:
+    """`v` to `digits` significant digits; 0 (never -0) below `noise` x `scale`."""
+    if abs(v) < noise * max(scale, 1.0):
         return "0"
     text = f"{v:.{digits}g}"
     return "0" if float(text) == 0 else text
@@ -300,11 +305,11 @@ def linearisation_section(env_id: str, level: str = "##") -> str:
     names = ", ".join(f"`{s}`" for s in lin.states)
     eig = np.linalg.eigvals(lin.A)
     scale = float(np.abs(eig).max(initial=0.0))
+    real = [number(e.real, scale, noise=EIGEN_NOISE) for e in eig]
+    imag = [number(abs(e.imag), scale, noise=EIGEN_NOISE) for e in eig]
     eigs = ", ".join(
-        number(e.real, scale)
-        if abs(e.imag) < NOISE * max(scale, 1.0)
-        else f"{number(e.real, scale)} {'-' if e.imag < 0 else '+'} {number(abs(e.imag), scale)}i"
-        for e in eig
+        r if i == "0" else f"{r} {'-' if e.imag < 0 else '+'} {i}i"
+        for r, i, e in zip(real, imag, eig)
     )
     x0 = ", ".join(number(v) for v in lin.x0)
     u0 = ", ".join(number(v) for v in lin.u0)

@@ -195,6 +195,12 @@ def test_model_pages_cite_the_source_and_print_no_rounding_noise(site):
         matrices = re.findall(r"\\begin\{bmatrix\}(.*?)\\end\{bmatrix\}", unescape(html), re.S)
         cells = [c.strip() for m in matrices for c in re.split(r"&|\\\\", m)]
         assert "-0" not in cells and not any("e-3" in c or "10^{-3" in c for c in cells), name
+        text = unescape(re.sub(r"<[^>]+>", "", html))
+        for printed in re.findall(
+            r"(?:x0|u0) = \(([^)]*)\)|Eigenvalues of A \(1/s\): ([^\n]*)", text
+        ):
+            values = "".join(printed)
+            assert not re.search(r"(^|[ (,])-0([,) ]|$)|e-(0[89]|[1-9]\d)", values), (name, values)
     assert "Chapter 7" in _page(site, "") and "robustness" in _page(site, "")
 
 
