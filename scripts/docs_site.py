@@ -339,7 +339,8 @@ def choose_agent(env_id: str, results: dict | None) -> str:
 
 def render_animation(env_id: str, agent: str, seed: int = 0, width: int = GIF_WIDTH, frames_max=80):
     """(GIF bytes, facts) of one episode of `agent` from reset(seed) in real time, until 2 s
-    after the first success, the episode's end, or 15 s: at most `frames_max` frames."""
+    after the first success (4 s at least), the episode's end, or 15 s: at most
+    `frames_max` frames."""
     import gymnasium as gym
     import numpy as np
     from PIL import Image
@@ -363,7 +364,7 @@ def render_animation(env_id: str, agent: str, seed: int = 0, width: int = GIF_WI
         done = (
             terminated
             or truncated
-            or (first_success is not None and step * dt >= first_success + 2.0)
+            or (first_success is not None and step * dt >= max(first_success + 2.0, 4.0))
         )
     env.close()
     stride = max(2, -(-len(frames) // frames_max))
@@ -404,6 +405,7 @@ def animation(env_id: str) -> tuple[bytes | None, dict]:
 
 
 def write_animations(ids: list[str]) -> None:
+    import envs  # noqa: F401  (registers the namespace when ids are given)
     from dynamics.cache import write_atomic
 
     results = benchmark()
