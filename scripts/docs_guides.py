@@ -197,9 +197,9 @@ def robustness_page() -> str:
     figures = ["## Figures", ""]
     figures.append(
         "Each panel moves one quantity; the band is the 95 % interval, the grey line 50 %. "
-        "These figures are from the README's runs (100 episodes per point, PPO trained "
-        "nominally and with randomisation included), which may be larger than the run "
-        "tabulated above:"
+        "These figures come from the README's larger runs (100 episodes per grid point, PPO "
+        "trained nominally and with randomisation included), not from the run tabulated "
+        "above:"
     )
     figures.append("")
     folder = ROOT / "docs" / ROBUSTNESS_FIGURES

@@ -204,6 +204,17 @@ def test_model_pages_cite_the_source_and_print_no_rounding_noise(site):
     assert "Chapter 7" in _page(site, "") and "robustness" in _page(site, "")
 
 
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_the_robustness_page_is_dated_and_shows_its_figures(site):
+    html = _page(site, "robustness")
+    assert re.search(r"Measured \d{4}-\d\d-\d\d", html)
+    for png in (ROOT / "docs" / "img" / "robustness").glob("*.png"):
+        assert f"img/robustness/{png.name}" in html, png.name
+    agents = _page(site, "agents")
+    for command in ("check", "train", "evaluate", "lqr", "plan"):
+        assert f"python -m agents.{command}" in unescape(agents), command
+
+
 @pytest.mark.slow  # builds the site and starts a browser per page: a minute
 def test_equations_render_offline_in_a_real_browser(site):
     check = _checker()
