@@ -440,6 +440,7 @@ def env_page(env_id: str, anim: dict) -> str:
     else:
         outcome = "no success in the frames shown"
     own = guides().version_doc(task, module)
+    own = escape_text(own) if own else None  # N*m is no emphasis
     lines = [
         f"# {env_id}",
         "",
