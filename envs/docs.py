@@ -23,6 +23,7 @@ from dynamics.cache import write_atomic
 from .plant import Plant
 from .task import Task
 
+_SOURCE = Path(__file__).read_text(encoding="utf-8")
 MODULES = ("envs.arm", "envs.acrobot", "envs.disk", "envs.bead", "envs.crank", "envs.bicycle")
 
 
@@ -124,10 +125,33 @@ def input_units(task: Task) -> dict[str, str]:
     some coordinate has a dimensionless coefficient (Q = u, -u, u cos q, ...) is a torque
     where that coordinate is an angle and a force where it is a length; inputs with no
     such coordinate (or a model given as a compiled System) are left out."""
+    if isinstance(task.model, str):  # a registered model: kept on disk by its key
+        return dict(_stored_units(task.model))
     try:
         return dict(_units(task.model))
     except TypeError:  # a model object that cannot be a cache key
         return dict(_units.__wrapped__(task.model))
+
+
+@functools.lru_cache(maxsize=64)
+def _stored_units(name: str) -> tuple[tuple[str, str], ...]:
+    """`_units(name)` read from the model cache's folder (docs/), keyed by the model's key
+    and this module's source: deriving them reads T and every generalised force (seconds
+    for the bicycle)."""
+    import hashlib
+    import json
+
+    import dynamics
+    from dynamics.cache import cache_dir
+
+    key = hashlib.sha256((dynamics.get_model(name).key + _SOURCE).encode()).hexdigest()
+    path = cache_dir() / "docs" / f"units_{name}_{key[:24]}.json"
+    try:
+        return tuple(tuple(pair) for pair in json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError, TypeError):
+        units = _units(name)
+        write_atomic(path, json.dumps(units))
+        return units
 
 
 @functools.lru_cache(maxsize=64)

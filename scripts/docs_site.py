@@ -608,7 +608,8 @@ def model_page(name: str) -> str:
     return "\n".join(lines)
 
 
-def _test_source(ref: str, names: list[str]) -> str:
+@functools.cache
+def _test_source(ref: str, names: tuple[str, ...]) -> str:
     """The source of test `path::function`, or its whole file when the function reaches the
     model through a fixture (names no model itself)."""
     path, _, func = ref.partition("::")
@@ -634,7 +635,8 @@ def errata_of(name: str) -> list[str]:
         if header is None or not line.startswith("| ") or line.startswith("|---"):
             continue
         refs = re.findall(r"tests/[\w/]+\.py(?:::\w+)?", line)
-        sources = [_test_source(r, names) for r in refs if (ROOT / r.split("::")[0]).exists()]
+        found = [r for r in refs if (ROOT / r.split("::")[0]).exists()]
+        sources = [_test_source(r, tuple(names)) for r in found]
         quoted = [f'"{name}"', f"'{name}'"]
         if f"`{name}`" in line or any(q in src for src in sources for q in quoted):
             tables.setdefault(header, []).append(line)
