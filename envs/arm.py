@@ -24,10 +24,10 @@ sin, and so are the wrapped goal errors, so that a policy need not learn angle d
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | M1 | 29.43 |
-| 1 | M2 | 7.357 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | M1 | 29.43 | N*m |
+| 1 | M2 | 7.357 | N*m |
 
 ## Observation Space
 `Box(low, high, (14,), float32)`:
@@ -56,7 +56,7 @@ actions raise ValueError, complex ones TypeError.
 | angle | -19.74 | 0 | -(e1^2 + e2^2) |
 | precision | -4.443 | 0 | -sqrt(e1^2 + e2^2) |
 | rate | -12.63 | 0 | -0.01 (theta1'^2 + theta2'^2) |
-| effort | -0.002 | 0 | -0.001 |action|^2 |
+| effort | -0.002 | 0 | -0.001 \\|action\\|^2 |
 
 ## Rewards
 On the state after the step, the sum of `angle` = -(e1^2 + e2^2) with e = theta - theta*

@@ -20,9 +20,9 @@ Holding the bead at rest at r needs m g r (0.98 N*m at the end of the default ro
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | tau | 2 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | tau | 2 | N*m |
 
 ## Observation Space
 `Box(low, high, (6,), float32)`:
@@ -42,7 +42,7 @@ actions raise ValueError, complex ones TypeError.
 |---|---|---|---|
 | alive | 1 | 1 | 1 per step on the rod |
 | distance | -1 | 0 | -((r - r*) / half-length)^2, at most 1 |
-| precision | -1 | 0 | -|r - r*| / half-length, at most 1 |
+| precision | -1 | 0 | -\\|r - r*\\| / half-length, at most 1 |
 | angle | -0.1 | 0 | -0.1 phi^2, at most 0.1 |
 | effort | -0.001 | 0 | -0.001 action^2 |
 

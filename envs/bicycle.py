@@ -44,10 +44,10 @@ speed-scheduled LQR on (phi, delta, phi', delta') from the constraint-reduced li
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | T_delta | 5 |
-| 1 | T_R | 10 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | T_delta | 5 | N*m |
+| 1 | T_R | 10 | N*m |
 
 ## Observation Space
 `Box(low, high, (8,), float32)`:
@@ -70,8 +70,8 @@ actions raise ValueError, complex ones TypeError.
 | alive | 1 | 1 | 1 per step |
 | lean | -0.6169 | 0 | -phi^2 |
 | steer | -0.2467 | 0 | -0.1 delta^2 |
-| speed | -3 | 0 | -|v - v*|, at most 3 |
-| effort | -0.002 | 0 | -0.001 |action|^2 |
+| speed | -3 | 0 | -\\|v - v*\\|, at most 3 |
+| effort | -0.002 | 0 | -0.001 \\|action\\|^2 |
 
 ## Rewards
 On the state after the step, the sum of `alive` = 1, `lean` = -phi^2, `steer` =
@@ -112,6 +112,7 @@ import numpy as np
 
 from dynamics.bicycle import DEPENDENT_RATES, bicycle_system, upright_state
 
+from . import rendering_bicycle
 from .task import Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 
 SPEED_RANGE = (2.0, 6.0)
@@ -214,6 +215,11 @@ def on_ground(system, x: np.ndarray, speed: float) -> np.ndarray:
     return x
 
 
+def draw(surface, x, g, p, history):
+    track = None if history is None else [(h[0], h[1]) for h in history]
+    rendering_bicycle.draw_bicycle(surface, x, g[0], p, track)
+
+
 def start(rng, p):
     system = _system_for(p)
     v_star = rng.uniform(*SPEED_RANGE)
@@ -276,6 +282,7 @@ TASK = Task(
     substeps=1,
     integrator="dop853",
     max_episode_steps=300,
+    draw=draw,
     # plain LQR cannot drop the pitch and yaw rate exactly (they follow lean and steer
     # through the constraints), and refuses; the heuristic is the constraint-reduced LQR
     lqr=LQRHints(

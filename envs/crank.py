@@ -25,9 +25,9 @@ the crank angle, of the two that put the slider at x*, nearest the current crank
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | tau | 2 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | tau | 2 | N*m |
 
 ## Observation Space
 `Box(low, high, (6,), float32)`:

@@ -27,10 +27,10 @@ x', z' from the rolling constraints).
 overridable when the env is made). Actions outside [-1, 1] are clipped; NaN or inf
 actions raise ValueError, complex ones TypeError.
 
-| Num | Input | Limit |
-|-----|-------|-------|
-| 0 | tau_drive | 0.5 |
-| 1 | tau_steer | 0.1 |
+| Num | Input | Limit | Unit |
+|-----|-------|-------|------|
+| 0 | tau_drive | 0.5 | N*m |
+| 1 | tau_steer | 0.1 | N*m |
 
 ## Observation Space
 `Box(low, high, (13,), float32)`:
@@ -56,11 +56,11 @@ actions raise ValueError, complex ones TypeError.
 | Term | Min | Max | Meaning |
 |---|---|---|---|
 | alive | 1 | 1 | 1 per step |
-| speed | -3 | 0 | -|v - v*|, at most 3 |
-| heading | -3.142 | 0 | -|phi - phi*| |
+| speed | -3 | 0 | -\\|v - v*\\|, at most 3 |
+| heading | -3.142 | 0 | -\\|phi - phi*\\| |
 | lean | -0.2742 | 0 | -(theta - pi/2)^2 |
-| effort | -0.002 | 0 | -0.001 |action|^2 |
-| track | 0 | 1 | (exp(-|v - v*| / 0.1) + exp(-|phi - phi*| / 0.1)) / 2 |
+| effort | -0.002 | 0 | -0.001 \\|action\\|^2 |
+| track | 0 | 1 | (exp(-\\|v - v*\\| / 0.1) + exp(-\\|phi - phi*\\| / 0.1)) / 2 |
 
 ## Rewards
 On the state after the step, the sum of `alive` = 1, `speed` = -|v - v*| (at most 3),

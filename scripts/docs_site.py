@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import ast
 import functools
+import hashlib
 import importlib
 import importlib.util
 import inspect
@@ -40,6 +41,7 @@ ASSETS = DOCS / "assets" / "envs"  # committed animations: <slug>.gif and <slug>
 RESULTS = DOCS / "data" / "agents.json"  # written by benchmarks/baselines.py --results
 NAMESPACE = "Lagrange/"
 PACKAGES = ("dynamics", "envs", "agents")
+GIF_WIDTH = 480  # pixels: the animations as rendered and shown on each env page
 BASELINES = ("plan", "lqr", "heuristic")  # agents that need no training, best first on ties
 log = logging.getLogger("mkdocs.hooks.docs_site")
 
@@ -55,6 +57,7 @@ def env_ids() -> list[str]:
     return sorted(ids, key=lambda i: (i.rsplit("-v", 1)[0], int(i.rsplit("-v", 1)[1])))
 
 
+@functools.cache
 def model_names() -> list[str]:
     import dynamics
 
@@ -62,13 +65,45 @@ def model_names() -> list[str]:
 
 
 @functools.cache
-def models_doc():
-    """scripts/gen_models_doc.py, the models page's generator, as a module."""
-    path = ROOT / "scripts" / "gen_models_doc.py"
-    spec = importlib.util.spec_from_file_location("gen_models_doc", path)
+def model(name: str):
+    """The registered model `name`, built once per build (its spec is then built once)."""
+    import dynamics
+
+    return dynamics.get_model(name)
+
+
+@functools.cache
+def sibling(name: str):
+    """scripts/<name>.py (the models page's generator, the guides' pages) as a module."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def models_doc():
+    """scripts/gen_models_doc.py, the models page's generator, as a module."""
+    return sibling("gen_models_doc")
+
+
+def guides():
+    """scripts/docs_guides.py: the robustness, agents and citation pieces."""
+    return sibling("docs_guides")
+
+
+def cached_text(kind: str, parts: tuple[str, ...], build) -> str:
+    """`build()`'s text, kept on disk in the model cache's folder (docs/) under a hash of
+    `parts`: the derived display forms take seconds to minutes per model, and are the same
+    until the model, sympy or their generator changes. Written atomically."""
+    from dynamics.cache import cache_dir, write_atomic
+
+    key = hashlib.sha256("\n\0".join(parts).encode("utf-8")).hexdigest()
+    path = cache_dir() / "docs" / f"{kind}_{key[:24]}.md"
+    if path.is_file():
+        return path.read_text(encoding="utf-8")
+    text = build()
+    write_atomic(path, text)
+    return text
 
 
 def slug(env_id: str) -> str:
@@ -102,6 +137,12 @@ def documented(task) -> tuple[str, str]:
     return module.__name__, document(inspect.getdoc(module) or "", task)
 
 
+@functools.cache
+def documented_id(env_id: str) -> tuple[str, str]:
+    """`documented(task_of(env_id))`, once per build."""
+    return documented(task_of(env_id))
+
+
 # ---- Markdown formatting -----------------------------------------------------------------
 def escape_text(markdown: str) -> str:
     """Docstring prose as Markdown: outside code, a '*' (N*m, theta1*) is literal unless it
@@ -126,15 +167,36 @@ def sections(doc: str) -> tuple[str, dict[str, str]]:
     return summary.strip(), found
 
 
+NOISE = 1e-9
+"""Entries of a linearisation below this fraction of its largest entry print as 0: the
+exact Jacobians evaluated in floating point leave rounding residue (1e-33, -0.0) where the
+symbolic entry is zero."""
+
+
+EIGEN_NOISE = 1e-7
+"""The same for eigenvalues: a repeated eigenvalue (the bicycle's zero ones) splits by about
+the square root of the rounding error, 1.5e-8 relative, in floating point."""
+
+
+def number(v: float, scale: float = 1.0, digits: int = 4, noise: float = NOISE) -> str:
+    """`v` to `digits` significant digits; 0 (never -0) below `noise` x `scale`."""
+    if abs(v) < noise * max(scale, 1.0):
+        return "0"
+    text = f"{v:.{digits}g}"
+    return "0" if float(text) == 0 else text
+
+
 def latex_matrix(M, digits: int = 4) -> str:
     import numpy as np
 
+    M = np.atleast_2d(np.asarray(M, float))
+    scale = float(np.abs(M).max(initial=0.0))
+
     def num(v: float) -> str:
-        text = "0" if abs(v) < 1e-12 else f"{v:.{digits}g}"
-        mantissa, e, exponent = text.partition("e")
+        mantissa, e, exponent = number(v, scale, digits).partition("e")
         return mantissa + (f" \\times 10^{{{int(exponent)}}}" if e else "")
 
-    rows = [" & ".join(num(v) for v in row) for row in np.atleast_2d(M)]
+    rows = [" & ".join(num(v) for v in row) for row in M]
     return r"\begin{bmatrix}" + r" \\ ".join(rows) + r"\end{bmatrix}"
 
 
@@ -217,6 +279,8 @@ def env_facts(env_id: str) -> dict:
         "max_episode_steps": env.spec.max_episode_steps,
         "control_period": float(u.control_period),
         "system": u.system,
+        "defaults": guides().option_defaults(env),
+        "parameters": dict(u.system.parameters),
         "lin": None,
     }
     try:
@@ -239,15 +303,16 @@ def linearisation_section(env_id: str, level: str = "##") -> str:
     if lin is None:
         return f"{level} Linearisation\n\nNo operating point declared ({facts['no_lin']}).\n"
     names = ", ".join(f"`{s}`" for s in lin.states)
-    x0 = ", ".join(f"{v:.4g}" for v in lin.x0)
-    u0 = ", ".join(f"{v:.4g}" for v in lin.u0)
     eig = np.linalg.eigvals(lin.A)
+    scale = float(np.abs(eig).max(initial=0.0))
+    real = [number(e.real, scale, noise=EIGEN_NOISE) for e in eig]
+    imag = [number(abs(e.imag), scale, noise=EIGEN_NOISE) for e in eig]
     eigs = ", ".join(
-        f"{e.real:.4g}"
-        if abs(e.imag) < 1e-9
-        else f"{e.real:.4g} {'-' if e.imag < 0 else '+'} {abs(e.imag):.4g}i"
-        for e in eig
+        r if i == "0" else f"{r} {'-' if e.imag < 0 else '+'} {i}i"
+        for r, i, e in zip(real, imag, eig)
     )
+    x0 = ", ".join(number(v) for v in lin.x0)
+    u0 = ", ".join(number(v) for v in lin.u0)
     return (
         f"{level} Linearisation at the operating point\n\n"
         f"About the operating point after `reset(seed=0)` (the task's `operating_point`): "
@@ -272,9 +337,10 @@ def choose_agent(env_id: str, results: dict | None) -> str:
     return "heuristic" if task_of(env_id).heuristic is not None else "lqr"
 
 
-def render_animation(env_id: str, agent: str, seed: int = 0, width: int = 240, frames_max=80):
+def render_animation(env_id: str, agent: str, seed: int = 0, width: int = GIF_WIDTH, frames_max=80):
     """(GIF bytes, facts) of one episode of `agent` from reset(seed) in real time, until 2 s
-    after the first success, the episode's end, or 15 s: at most `frames_max` frames."""
+    after the first success (4 s at least), the episode's end, or 15 s: at most
+    `frames_max` frames."""
     import gymnasium as gym
     import numpy as np
     from PIL import Image
@@ -298,7 +364,7 @@ def render_animation(env_id: str, agent: str, seed: int = 0, width: int = 240, f
         done = (
             terminated
             or truncated
-            or (first_success is not None and step * dt >= first_success + 2.0)
+            or (first_success is not None and step * dt >= max(first_success + 2.0, 4.0))
         )
     env.close()
     stride = max(2, -(-len(frames) // frames_max))
@@ -339,6 +405,7 @@ def animation(env_id: str) -> tuple[bytes | None, dict]:
 
 
 def write_animations(ids: list[str]) -> None:
+    import envs  # noqa: F401  (registers the namespace when ids are given)
     from dynamics.cache import write_atomic
 
     results = benchmark()
@@ -358,11 +425,13 @@ def env_page(env_id: str, anim: dict) -> str:
 
     task = task_of(env_id)
     spec = gym.spec(env_id)
-    module, doc = documented(task)
+    name = env_id.rsplit("-v", 1)[0]
+    module, doc = documented_id(env_id)
     summary, parts = sections(escape_text(doc))
+    summary = re.sub(rf"^{re.escape(name)}-v\d+[^:]*: ", "", summary)  # the title names it
+    summary = summary[:1].upper() + summary[1:]
     facts = env_facts(env_id)
     model = model_name(task)
-    name = env_id.rsplit("-v", 1)[0]
     versions = [i for i in env_ids() if i.rsplit("-v", 1)[0] == name]
     obs = facts["observation_space"]
     seconds = facts["max_episode_steps"] * facts["control_period"]
@@ -370,13 +439,16 @@ def env_page(env_id: str, anim: dict) -> str:
         outcome = f"success (the task's criterion) from {anim['success_at_s']:.2f} s"
     else:
         outcome = "no success in the frames shown"
+    own = guides().version_doc(task, module)
+    own = escape_text(own) if own else None  # N*m is no emphasis
     lines = [
         f"# {env_id}",
         "",
+        guides().version_note(env_id, versions, current_ids(), own),
         summary,
         "",
         f'<figure markdown="span">\n  ![{env_id} under {anim["agent"]}]'
-        f'(../assets/envs/{slug(env_id)}.gif){{ width="320" }}\n'
+        f'(../assets/envs/{slug(env_id)}.gif){{ width="{GIF_WIDTH}" }}\n'
         f"  <figcaption>Agent <code>{anim['agent']}</code> from <code>reset(seed="
         f"{anim['seed']})</code>, first {anim['shown_s']:.1f} s: {outcome}.</figcaption>\n"
         "</figure>",
@@ -404,6 +476,10 @@ def env_page(env_id: str, anim: dict) -> str:
         "",
     ]
     for title, body in parts.items():
+        if title == "Arguments":
+            body += "\n\n" + arguments(env_id)
+        elif title == "Version History":
+            body += "\n\n" + guides().versions_section(env_id, versions, current_ids())
         lines += [f"## {title}", "", body, ""]
     lines.append(linearisation_section(env_id))
     lines += ["## Measured baselines", ""]
@@ -419,6 +495,25 @@ def env_page(env_id: str, anim: dict) -> str:
             "",
         ]
     return "\n".join(lines)
+
+
+def current_ids() -> tuple[str, ...]:
+    """The current version of each built-in task (`envs.ENV_IDS`)."""
+    import envs
+
+    return tuple(envs.ENV_IDS)
+
+
+def arguments(env_id: str) -> str:
+    """The arguments table: every `gymnasium.make` option with its type, this id's default
+    and its meaning, then the model's parameters with their units."""
+    facts = env_facts(env_id)
+    name = model_name(task_of(env_id))
+    spec = model(name).spec if name else None
+    units = {str(k): p.unit for k, p in spec.parameters.items()} if spec else {}
+    docs = {str(k): p.doc for k, p in spec.parameters.items()} if spec else {}
+    table = guides().arguments_table(facts["defaults"], facts["parameters"], units, docs)
+    return f'`gymnasium.make("{env_id}", **arguments)` takes:\n\n{table}'
 
 
 def lqr_region(env_id: str) -> str:
@@ -439,17 +534,28 @@ def lqr_region(env_id: str) -> str:
     )
 
 
-def model_page(name: str) -> str:
+def derived_text(name: str) -> str:
+    """The model page's derived part (description, parameters, equations, T, V, Q) in
+    Markdown with LaTeX: cached on disk by the model's key (`Model.key`: its source and
+    sympy's version), sympy's version and the source of the code that prints it."""
+    import sympy
+
+    parts = (
+        model(name).key,
+        sympy.__version__,
+        (ROOT / "scripts" / "gen_models_doc.py").read_text(encoding="utf-8"),
+        inspect.getsource(_derived_text),
+    )
+    return cached_text(f"model_{name}", parts, lambda: _derived_text(name))
+
+
+def _derived_text(name: str) -> str:
     from sympy.physics.vector.printing import vlatex
 
-    import dynamics
-
-    model_section = models_doc().model_section
-    model = dynamics.get_model(name)
-    spec = model.spec
+    spec = model(name).spec
     image = f"{name}.png" if (DOCS / "img" / f"{name}.png").exists() else None
     display = models_doc().display
-    section = model_section(name, image, level=1, images="../img/")
+    section = models_doc().model_section(name, image, level=1, images="../img/", model=model(name))
     lines = [section.replace("```text\n", "```{.text .prose}\n", 1)]  # wraps (extra.css)
     lines += [
         "## Energies and forces",
@@ -469,6 +575,14 @@ def model_page(name: str) -> str:
         lines += ["Prescribed (rheonomic) coordinates:", ""]
         lines += [f"$$ {vlatex(q)} = {vlatex(f)} $$\n" for q, f in spec.prescribed.items()]
         lines.append("")
+    return "\n".join(lines)
+
+
+def model_page(name: str) -> str:
+    text = derived_text(name)
+    heading, _, rest = text.partition("\n")
+    source = guides().model_source(model(name).spec.description or "")
+    lines = [heading, "", source, rest]
     on_it = [i for i in env_ids() if model_name(task_of(i)) == name]
     if on_it:
         lines += ["## Environments on this model", ""]
@@ -494,7 +608,8 @@ def model_page(name: str) -> str:
     return "\n".join(lines)
 
 
-def _test_source(ref: str, names: list[str]) -> str:
+@functools.cache
+def _test_source(ref: str, names: tuple[str, ...]) -> str:
     """The source of test `path::function`, or its whole file when the function reaches the
     model through a fixture (names no model itself)."""
     path, _, func = ref.partition("::")
@@ -520,7 +635,8 @@ def errata_of(name: str) -> list[str]:
         if header is None or not line.startswith("| ") or line.startswith("|---"):
             continue
         refs = re.findall(r"tests/[\w/]+\.py(?:::\w+)?", line)
-        sources = [_test_source(r, names) for r in refs if (ROOT / r.split("::")[0]).exists()]
+        found = [r for r in refs if (ROOT / r.split("::")[0]).exists()]
+        sources = [_test_source(r, tuple(names)) for r in found]
         quoted = [f'"{name}"', f"'{name}'"]
         if f"`{name}`" in line or any(q in src for src in sources for q in quoted):
             tables.setdefault(header, []).append(line)
@@ -542,13 +658,13 @@ def envs_index(anims: dict[str, dict]) -> str:
     ]
     for env_id in env_ids():
         task = task_of(env_id)
-        summary = sections(documented(task)[1])[0].split(":", 1)[-1].strip()
+        summary = sections(documented_id(env_id)[1])[0].split(":", 1)[-1].strip()
         summary = escape_text(" ".join(summary.split()))
         facts = env_facts(env_id)
         model = model_name(task)
         n_a, n_o = facts["action_space"].shape[-1], facts["observation_space"].shape[-1]
         lines.append(
-            f'| ![{env_id}](../assets/envs/{slug(env_id)}.gif){{ width="120" }} '
+            f'| ![{env_id}](../assets/envs/{slug(env_id)}.gif){{ width="160" }} '
             f"| [{env_id}]({slug(env_id)}.md)<br>{summary} | "
             + (f"[{model}](../models/{model}.md)" if model else "")
             + f" | {n_a} actions, {n_o} observations |"
@@ -557,8 +673,6 @@ def envs_index(anims: dict[str, dict]) -> str:
 
 
 def models_index() -> str:
-    import dynamics
-
     lines = [
         "# Models",
         "",
@@ -569,7 +683,7 @@ def models_index() -> str:
         "|---|---|---|---|",
     ]
     for name in model_names():
-        m = dynamics.get_model(name)
+        m = model(name)
         on_it = [
             f"[{i}](../envs/{slug(i)}.md)" for i in env_ids() if model_name(task_of(i)) == name
         ]
@@ -631,22 +745,18 @@ def pages() -> tuple[dict[str, str], dict[str, bytes]]:
         texts[f"models/{name}.md"] = model_page(name)
     texts["models/index.md"] = models_index()
     texts["benchmark.md"] = benchmark_page()
+    texts["robustness.md"] = guides().robustness_page()
     for module in modules():
         texts[f"reference/{module}.md"] = reference_page(module)
     return texts, blobs
 
 
 # ---- mkdocs hooks ------------------------------------------------------------------------
-GUIDE = ("new-system.md", "identification.md", "scaling-out.md", "architecture.md", "errata.md")
-
-
 def on_config(config):
-    """The navigation: the guide, then the generated sections."""
+    """The navigation: mkdocs.yml's (home and the guides), then the generated sections."""
     if sys.path[0] != str(ROOT):  # mkdocs restores sys.path after loading this file
         sys.path.insert(0, str(ROOT))
-    config["nav"] = [
-        {"Home": "index.md"},
-        {"User guide": list(GUIDE) + ["benchmark.md"]},
+    config["nav"] = list(config.get("nav") or []) + [
         {"Environments": ["envs/index.md"] + [{i: f"envs/{slug(i)}.md"} for i in env_ids()]},
         {"Models": ["models/index.md"] + [{m: f"models/{m}.md"} for m in model_names()]},
         {"API reference": [{m: f"reference/{m}.md"} for m in modules()]},
@@ -664,12 +774,13 @@ def on_files(files, config):
 
 
 def on_page_markdown(markdown, page, config, files):
-    """The home page's environment gallery, from the registry."""
+    """The home page's environment gallery, from the registry, and the source's citation."""
     if page.file.src_uri != "index.md":
         return markdown
+    markdown = markdown.replace("<!-- source -->", guides().citation())
     cells = [
         f'<a class="env-card" href="envs/{slug(i)}/"><img src="assets/envs/{slug(i)}.gif" '
-        f'alt="{i}" width="200"><span>{i}</span></a>'
+        f'alt="{i}" width="240"><span>{i}</span></a>'
         for i in env_ids()
     ]
     table = '<div class="env-gallery">\n' + "\n".join(cells) + "\n</div>"

@@ -159,12 +159,14 @@ def display(expr, lhs: str = "", rhs: str = "", width: int = 220) -> str:
     return f"$$\n\\begin{{aligned}}\n{body}\n\\end{{aligned}}\n$$"
 
 
-def model_section(name: str, image: str | None, level: int = 2, images: str = "img/") -> str:
+def model_section(
+    name: str, image: str | None, level: int = 2, images: str = "img/", model=None
+) -> str:
     """The Markdown section of one model (its heading at `level`, schematics under `images`;
-    the documentation site's model pages start from it too)."""
+    the documentation site's model pages start from it too, giving the `model` they built)."""
     from sympy.physics.vector.printing import vlatex
 
-    model = dynamics.get_model(name)
+    model = model or dynamics.get_model(name)
     spec = model.spec
     lines = [f"{'#' * level} `{name}`", ""]
     doc = inspect.cleandoc(spec.description or "").splitlines()
@@ -175,7 +177,8 @@ def model_section(name: str, image: str | None, level: int = 2, images: str = "i
     lines.append(f"Inputs: {', '.join(f'`{u}`' for u in model.inputs) or 'none'}.")
     lines += ["", "| parameter | default | unit | meaning |", "|---|---|---|---|"]
     for sym, par in spec.parameters.items():
-        lines.append(f"| `{sym}` | {par.default:g} | {par.unit or '-'} | {par.doc} |")
+        doc = str(par.doc).replace("|", r"\|")  # a '|' would end the cell
+        lines.append(f"| `{sym}` | {par.default:g} | {par.unit or '-'} | {doc} |")
     if name in EQUATIONS_NOT_PRINTED:
         return "\n".join([*lines, "", EQUATIONS_NOT_PRINTED[name]]) + "\n"
     lines += ["", "Lagrange's equations (each = 0):", ""]

@@ -31,6 +31,41 @@ def test_the_new_system_walkthrough_runs_as_written(tmp_path, monkeypatch, capsy
 
     assert lqr.main(["my_cart_pole:MyNS/CartPole-v0", "--episodes", "10"]) == 0
     assert "LQR: success 10/10" in capsys.readouterr().out
+    _the_next_steps_work_as_the_page_says()
+
+
+def _the_next_steps_work_as_the_page_says():
+    """Part 5: a goal drawn at reset with the operating point on it, a derived feature, a
+    model output, a force at a point, a one-sided input, a nonholonomic constraint."""
+    import numpy as np
+
+    env = gym.make("MyNS/CartPoleTarget-v0")
+    obs, info = env.reset(seed=1)
+    goal = float(info["goal"][0])
+    assert -1.0 <= goal <= 1.0 and obs.shape == (7,)
+    x = env.unwrapped.state
+    assert obs[5] == pytest.approx(goal) and obs[6] == pytest.approx(x[0] - goal, abs=1e-6)
+    x0, _ = env.unwrapped.operating_point()
+    assert x0[0] == pytest.approx(goal)  # the operating point follows the goal
+
+    env = gym.make("MyNS/CartPoleThruster-v0")
+    obs, info = env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([0.0, -1.0], np.float32))
+    assert info["input"][1] == 0.0  # action -1 is the thruster's 0 N: it never pulls
+    _, _, _, _, info = env.step(np.array([0.0, 1.0], np.float32))
+    assert info["input"][1] == pytest.approx(2.0)
+    l = env.unwrapped.system.parameters["l"]
+    assert obs[5] == pytest.approx(2 * l * np.cos(env.unwrapped.state[1]), abs=1e-3)  # tip_height
+
+    env = gym.make("MyNS/Skate-v0")
+    env.reset(seed=0)
+    for _ in range(20):
+        _, _, _, _, info = env.step(np.array([1.0, 0.5], np.float32))
+    x = env.unwrapped.state
+    sideways = -np.sin(x[2]) * x[3] + np.cos(x[2]) * x[4]
+    # the constraint holds to the integrator's projection: round-off, not slip
+    assert abs(sideways) < 1e-9 and np.abs(info["constraint_residual"]).max() < 1e-9
+    assert np.hypot(x[3], x[4]) > 0.1  # it moved, along its heading
 
 
 def test_ci_runs_the_readme_test_command_word_for_word():

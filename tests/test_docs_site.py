@@ -131,3 +131,97 @@ def test_benchmark_numbers_carry_their_date_and_machine(site):
         assert f"Measured {run['finished'][:10]}" in page, env_id
         assert f"by {run['command']}" in page, env_id
         assert f"{run['machine']['cores']} cores" in page, env_id
+
+
+def _checker():
+    """scripts/check_site.py (the offline checks of a built site) as a module."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("check_site", ROOT / "scripts" / "check_site.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_checker_finds_outside_loads_and_raw_tex():
+    check = _checker()
+    html = (
+        '<script src="https://cdn.example/m.js"></script><link href="//fonts.example/css" '
+        'rel="stylesheet"><script src="../javascripts/mathjax.js"></script>'
+        '<a href="https://example.org">a link is not a load</a>'
+        '<link rel="canonical" href="https://site.example/page/">'  # names the page only
+    )
+    assert check.external_resources(html) == ["https://cdn.example/m.js", "//fonts.example/css"]
+    dom = (
+        '<div class="arithmatex"><mjx-container>x</mjx-container></div>'
+        '<div class="arithmatex">\\[x\\]</div>'
+    )
+    assert check.unrendered(dom) == (2, 1)
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_the_site_loads_nothing_from_outside_and_has_a_sitemap(site):
+    check = _checker()
+    outside = {
+        str(p.relative_to(site)): found
+        for p in site.rglob("*.html")
+        if (found := check.external_resources(p.read_text(encoding="utf-8")))
+    }
+    assert not outside
+    assert (site / "javascripts" / "vendor" / "mathjax" / "tex-svg-full.js").stat().st_size > 1e6
+    assert "<loc>" in (site / "sitemap.xml").read_text(encoding="utf-8")  # site_url is set
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_env_pages_have_their_own_versions_units_arguments_and_whole_cells(site):
+    v1, v2 = _page(site, "envs/Lagrange-Acrobot-v1"), _page(site, "envs/Lagrange-Acrobot-v2")
+    assert "Superseded" in v1 and 'href="../Lagrange-Acrobot-v2/"' in v1
+    assert "Superseded" not in v2 and "max_input=3.0" not in v2
+    assert "<td>9.81</td>" in v2 and "<td>3</td>" in v1  # each version's own elbow limit
+    for env_id in [k for k in gym.registry if k.startswith("Lagrange/")]:
+        html = _page(site, f"envs/{env_id.replace('/', '-')}")
+        assert "<th>Unit</th>" in html and "<th>argument</th>" in html, env_id
+        assert 'id="version-history"' in html and "<th>status</th>" in html, env_id
+    arm = unescape(re.sub(r"<[^>]+>", "", _page(site, "envs/Lagrange-TwoLinkArm-v1")))
+    assert "-0.001 |action|^2" in arm  # a '|' in a cell no longer ends it
+    assert "N*m" in arm
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_model_pages_cite_the_source_and_print_no_rounding_noise(site):
+    for name in dynamics.list_models():
+        html = _page(site, f"models/{name}")
+        assert "Chapter 7" in html, name
+        matrices = re.findall(r"\\begin\{bmatrix\}(.*?)\\end\{bmatrix\}", unescape(html), re.S)
+        cells = [c.strip() for m in matrices for c in re.split(r"&|\\\\", m)]
+        assert "-0" not in cells and not any("e-3" in c or "10^{-3" in c for c in cells), name
+        text = unescape(re.sub(r"<[^>]+>", "", html))
+        for printed in re.findall(
+            r"(?:x0|u0) = \(([^)]*)\)|Eigenvalues of A \(1/s\): ([^\n]*)", text
+        ):
+            values = "".join(printed)
+            assert not re.search(r"(^|[ (,])-0([,) ]|$)|e-(0[89]|[1-9]\d)", values), (name, values)
+    assert "Chapter 7" in _page(site, "") and "robustness" in _page(site, "")
+
+
+@pytest.mark.slow  # builds the site: tens of seconds
+def test_the_robustness_page_is_dated_and_shows_its_figures(site):
+    html = _page(site, "robustness")
+    assert re.search(r"Measured \d{4}-\d\d-\d\d", html)
+    for png in (ROOT / "docs" / "img" / "robustness").glob("*.png"):
+        assert f"img/robustness/{png.name}" in html, png.name
+    agents = _page(site, "agents")
+    for command in ("check", "train", "evaluate", "lqr", "plan"):
+        assert f"python -m agents.{command}" in unescape(agents), command
+
+
+@pytest.mark.slow  # builds the site and starts a browser per page: a minute
+def test_equations_render_offline_in_a_real_browser(site):
+    check = _checker()
+    browser = check.find_browser()
+    if browser is None:
+        pytest.skip("no Chromium here; the HTML checks above still ran")
+    pages = ["models/two_link_arm", "envs/Lagrange-Acrobot-v2", "errata"]
+    for page in pages:
+        blocks, raw = check.unrendered(check.rendered_dom(browser, site / page / "index.html"))
+        assert blocks > 0 and raw == 0, (page, blocks, raw)

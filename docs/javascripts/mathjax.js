@@ -1,4 +1,7 @@
-// MathJax for pymdownx.arithmatex (generic mode), as Material for MkDocs documents it.
+// MathJax for pymdownx.arithmatex (generic mode). MathJax itself is the single-file SVG
+// build vendored next to this file (vendor/mathjax: npm `mathjax` 3.2.2, es5/tex-svg-full.js,
+// Apache-2.0): every TeX extension built in and glyphs drawn as SVG paths, so the equations
+// render with no network and no web fonts.
 window.MathJax = {
   tex: {
     inlineMath: [["\\(", "\\)"]],
@@ -6,15 +9,20 @@ window.MathJax = {
     processEscapes: true,
     processEnvironments: true
   },
+  svg: {
+    fontCache: "global"
+  },
   options: {
     ignoreHtmlClass: ".*|",
     processHtmlClass: "arithmatex"
   }
 };
 
+// Material's instant navigation swaps pages without reloading: typeset each new page
 document$.subscribe(() => {
-  MathJax.startup.output.clearCache()
-  MathJax.typesetClear()
-  MathJax.texReset()
-  MathJax.typesetPromise()
-})
+  if (!window.MathJax.typesetPromise) return;  // first page: MathJax typesets it at startup
+  MathJax.startup.output.clearCache();
+  MathJax.typesetClear();
+  MathJax.texReset();
+  MathJax.typesetPromise();
+});
