@@ -8,7 +8,6 @@ without importing sympy or building the model at all.
 from __future__ import annotations
 
 import ast
-import difflib
 import hashlib
 import importlib
 import importlib.util
@@ -19,6 +18,7 @@ from importlib import metadata
 from pathlib import Path
 
 from . import cache as _cache
+from . import checks
 from .system import System
 
 _REGISTRY: dict[str, str] = {
@@ -112,9 +112,7 @@ def get_model(name: str, **options) -> Model:
             f"Known: {', '.join(list_models())}."
         )
     if name not in _REGISTRY:
-        close = difflib.get_close_matches(name, list(_REGISTRY), n=3)
-        hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
-        raise ValueError(f"Unknown model {name!r}.{hint} Known: {', '.join(list_models())}.")
+        raise checks.unknown("model", name, list_models(), n=3)
     return Model(_REGISTRY[name], name=name, options=options)
 
 

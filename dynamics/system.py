@@ -13,7 +13,6 @@ skip this, for the environments' hot path.
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 from pathlib import Path
@@ -31,10 +30,9 @@ def check_parameters(model_name: str, names, defaults, positive, given: dict) ->
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
         if key not in values:
-            close = difflib.get_close_matches(str(key), names, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ValueError(
-                f"Unknown parameter {key!r} for {model_name}.{hint} Known: {', '.join(names)}."
+                f"Unknown parameter {key!r} for {model_name}.{checks.did_you_mean(key, names)} "
+                f"Known: {', '.join(names)}."
             )
         values[key] = checks.parameter(model_name, key, value)
     for key, pos in zip(names, positive):
@@ -95,7 +93,7 @@ class System:
 
     # ---- argument checking -------------------------------------------------------------
     def _state(self, x) -> np.ndarray:
-        x = checks.real_array(self.name, "state", x)
+        x = checks.real_array(x, "state", self.name)
         if x.ndim == 0 or x.shape[-1] != self.state_size:
             raise ValueError(
                 f"{self.name}: expected state of shape (..., {self.state_size}) "
@@ -106,7 +104,7 @@ class System:
     def _input(self, u) -> np.ndarray:
         if u is None:
             return self._no_input
-        u = checks.real_array(self.name, "input", u)
+        u = checks.real_array(u, "input", self.name)
         if u.ndim == 0 or u.shape[-1] != self.n_u:
             raise ValueError(
                 f"{self.name}: expected input of shape (..., {self.n_u}) for "
@@ -119,7 +117,7 @@ class System:
         for every caller), check they are finite; return them and the leading shape."""
         x = self._state(x)
         u = self._input(u) if need_u else self._no_input
-        t = checks.real_array(self.name, "time", t)
+        t = checks.real_array(t, "time", self.name)
         lead = x.shape[:-1]
         if u.shape[:-1] != lead or t.ndim:
             lead = np.broadcast_shapes(lead, u.shape[:-1], t.shape)
@@ -259,14 +257,13 @@ class System:
         of the point's declared velocity, N) acting at `point` (one of `points`) in states x:
         Q_s = force . dv/dqdot_s, by virtual work (`dynamics.spec.generalized_forces`)."""
         if point not in self.points:
-            close = difflib.get_close_matches(str(point), list(self.points), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = checks.did_you_mean(point, self.points)
             raise ValueError(
                 f"{self.name} has no point {point!r}.{hint} Known: "
                 f"{', '.join(self.points) or 'none (ModelSpec.points)'}."
             )
         dims = self.points[point]
-        f = checks.real_array(self.name, "force", force)
+        f = checks.real_array(force, "force", self.name)
         if f.ndim == 0 or f.shape[-1] != dims:
             raise ValueError(
                 f"{self.name}: a force at {point!r} has {dims} components, got shape {f.shape}."

@@ -5,7 +5,6 @@ declared form (a (low, high) pair, a dataclass, or a plain dict with `dist`)."""
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -13,7 +12,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from .checks import real_array
+from dynamics import checks
+from dynamics.checks import real_array
 
 APPLY = ("absolute", "scale", "offset")
 WHEN = ("reset", "construction")
@@ -207,11 +207,7 @@ def distribution(value, name: str = "") -> Distribution:
         kind = value.get("dist", "uniform")
         cls = DISTRIBUTIONS.get(kind) if isinstance(kind, str) else None
         if cls is None:
-            close = difflib.get_close_matches(str(kind), list(DISTRIBUTIONS), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            raise ValueError(
-                f"{where}: unknown dist {kind!r}.{hint} Known: {', '.join(DISTRIBUTIONS)}."
-            )
+            raise checks.unknown("dist", kind, DISTRIBUTIONS, where)
         known = [f.name for f in fields(cls)]
         unknown = sorted(set(value) - set(known) - {"dist"})
         if unknown:

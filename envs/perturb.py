@@ -52,7 +52,6 @@ step is one compiled kernel (`_step`): benchmarks/envs.py --perturb measures the
 
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
 from collections.abc import Mapping
@@ -60,6 +59,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from dynamics.checks import did_you_mean
 
 KEYS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 PUSH_KEYS = ("force", "every", "duration", "point")
@@ -71,9 +72,10 @@ step): a Python call per copy and step would cost more than the step at N = 1024
 def _unknown(keys, known, where: str) -> None:
     for key in keys:
         if key not in known:
-            close = difflib.get_close_matches(str(key), known, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            raise ValueError(f"Unknown key {key!r} in {where}.{hint} Known: {', '.join(known)}.")
+            raise ValueError(
+                f"Unknown key {key!r} in {where}.{did_you_mean(key, known)} "
+                f"Known: {', '.join(known)}."
+            )
 
 
 def _sizes(value, n: int, name: str, what: str) -> np.ndarray:
@@ -189,10 +191,9 @@ def _push(value, plant) -> Push:
         )
     point = value.get("point", next(iter(points)))
     if point not in points:
-        close = difflib.get_close_matches(str(point), list(points), n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
         raise ValueError(
-            f"perturb['push']['point'] = {point!r} is not a point of {system.name}.{hint} "
+            f"perturb['push']['point'] = {point!r} is not a point of {system.name}."
+            f"{did_you_mean(point, points)} "
             f"Known: {', '.join(points)}."
         )
     force = _positive(value, "force", None, zero_ok=True)

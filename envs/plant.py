@@ -13,7 +13,6 @@ action scaling, and the env's own step (`step`; a batched simulator of it is
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cache, cached_property
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 import dynamics
+from dynamics.checks import did_you_mean
 from dynamics.system import method_tableau
 
 from . import checks
@@ -87,8 +87,7 @@ def compile_model(model, params: dict) -> dynamics.System:
     known = list(system.parameters)
     for key in params:
         if key not in known:
-            close = difflib.get_close_matches(key, known + list(ENV_OPTIONS), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(key, known + list(ENV_OPTIONS))
             raise ValueError(
                 f"Unknown argument {key!r}.{hint} Known: {', '.join(ENV_OPTIONS)} and the "
                 f"parameters of {system.name}: {', '.join(known)}."
@@ -535,8 +534,7 @@ def build_plant(task: Task, params: dict, max_input=None) -> Plant:
         if name in goal_names:
             return nx + goal_names.index(name)
         known = list(row_names) + list(goal_names)
-        close = difflib.get_close_matches(name, known, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
+        hint = did_you_mean(name, known)
         raise ValueError(
             f"Task {task.name!r}: {type(feature).__name__}({name!r}) names nothing known.{hint} "
             f"State and outputs: {', '.join(row_names)}; goal: {', '.join(goal_names) or 'none'}."
@@ -639,8 +637,7 @@ def build_plant(task: Task, params: dict, max_input=None) -> Plant:
 
 def _index(task: Task, names: tuple[str, ...], name: str, where: str) -> int:
     if name not in names:
-        close = difflib.get_close_matches(name, names, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
+        hint = did_you_mean(name, names)
         raise ValueError(
             f"Task {task.name!r}: unknown state component {name!r} in `{where}`.{hint} "
             f"Known: {', '.join(names)}."

@@ -37,7 +37,6 @@ declaration touches.
 
 from __future__ import annotations
 
-import difflib
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -45,7 +44,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .checks import real_array
+from dynamics.checks import did_you_mean, real_array
+
 from .distributions import Choice, LogUniform, TruncNormal, Uniform, distribution
 
 
@@ -53,10 +53,8 @@ def parameter_name(system, key, where: str) -> None:
     """ValueError (with a "Did you mean") unless `key` is a parameter of `system`."""
     known = list(system.parameters)
     if key not in known:
-        close = difflib.get_close_matches(str(key), known, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
         raise ValueError(
-            f"{where}: {key!r} is not a parameter of {system.name}.{hint} "
+            f"{where}: {key!r} is not a parameter of {system.name}.{did_you_mean(key, known)} "
             f"Known: {', '.join(known)}."
         )
 
