@@ -172,9 +172,7 @@ def train(
             "hyperparams": hp,
         }
         if env_options:  # what the setting meant for this env: absolute ranges, model units
-            config["env_options"] = {
-                "randomize": {k: list(v) for k, v in env_options["randomize"].items()}
-            }
+            config["env_options"] = {"randomize": randomization.recorded(env_options["randomize"])}
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq or max(total // 10, 2000),

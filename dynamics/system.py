@@ -21,11 +21,13 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from . import cache, checks
+from . import cache, checks, physical
 from .methods import METHODS
 
 
-def check_parameters(model_name: str, names, defaults, positive, given: dict) -> np.ndarray:
+def check_parameters(
+    model_name: str, names, defaults, positive, given: dict, nonnegative=()
+) -> np.ndarray:
     """Parameter vector from defaults and overrides, with errors that name the problem."""
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
@@ -39,6 +41,11 @@ def check_parameters(model_name: str, names, defaults, positive, given: dict) ->
         if pos and not values[key] > 0:
             raise ValueError(
                 f"Parameter {key!r} of {model_name} must be positive, got {values[key]}."
+            )
+    for key, nonneg in zip(names, nonnegative):
+        if nonneg and not values[key] >= 0:
+            raise ValueError(
+                f"Parameter {key!r} of {model_name} must not be negative, got {values[key]}."
             )
     return np.array([values[k] for k in names], dtype=np.float64)
 
@@ -56,15 +63,8 @@ class System:
         self.n_q, self.n_u, self.n_c = module.N_Q, module.N_U, module.N_C
         self.state_size = 2 * self.n_q
         self._no_input = np.zeros(self.n_u)
-        self._p = check_parameters(
-            self.name, module.PARAMETERS, module.DEFAULTS, module.POSITIVE, params or {}
-        )
+        self._p = self._checked(params or {})
         self.parameters: dict[str, float] = dict(zip(module.PARAMETERS, self._p.tolist()))
-        for statement, value in zip(module.CONDITIONS, module.conditions(self._p)):
-            if not value > 0:
-                raise ValueError(
-                    f"{self.name}: parameters violate {statement} ({self.parameters})."
-                )
         self.units: dict[str, str] = dict(zip(module.PARAMETERS, module.UNITS))
         # the points an external force may act on: name -> its number of components
         self.points: dict[str, int] = dict(
@@ -283,11 +283,27 @@ class System:
         the model's conditions."""
         n = len(next(iter(values.values()))) if values else 0
         for b in range(n):
-            given = {k: v[b] for k, v in values.items()}
-            p = check_parameters(self.name, self._m.PARAMETERS, self._p, self._m.POSITIVE, given)
-            for statement, value in zip(self._m.CONDITIONS, self._m.conditions(p)):
-                if not value > 0:
-                    raise ValueError(f"{self.name}: parameters violate {statement} ({given}).")
+            self._checked({k: v[b] for k, v in values.items()}, self._p)
+
+    def _checked(self, given: dict, base=None) -> np.ndarray:
+        """The parameter vector of `given` over `base` (the defaults), checked: names, values,
+        signs, the model's conditions and its bodies' inertia (`dynamics.physical`)."""
+        m = self._m
+        p = check_parameters(
+            self.name, m.PARAMETERS, m.DEFAULTS if base is None else base, m.POSITIVE, given,
+            getattr(m, "NONNEGATIVE", ()),
+        )  # fmt: skip
+        broken = physical.problems(m, p)
+        if broken:
+            shown = given or dict(zip(m.PARAMETERS, p.tolist()))
+            raise ValueError(f"{self.name}: parameters {'; '.join(broken)} ({shown}).")
+        return p
+
+    @property
+    def bodies(self) -> dict[str, tuple[str, ...]]:
+        """The model's rigid bodies (`ModelSpec.bodies`): name -> the parameters its inertia
+        reads. Values that make one impossible are refused like a broken condition."""
+        return {name: reads for name, reads in physical.bodies(self._m)}
 
     def kernels(self) -> tuple[ModuleType, np.record]:
         """(module, parameters): the generated module of numba kernels (its `KEY` hashes all

@@ -187,14 +187,47 @@ class Choice(_Distribution):
         return min(self.values), max(self.values)
 
 
+@dataclass(frozen=True)
+class Same:
+    """The draw of another randomised parameter, applied to this one's nominal value:
+    `{"I": Uniform(0.75, 1.25, apply="scale"), "J": Same("I")}` scales a body's moments
+    by one factor, so that it stays a body (`ModelSpec.bodies`). `parameter` must be
+    declared before, with a distribution of its own; `apply` and `when` are its."""
+
+    parameter: str
+    dist: Uniform | LogUniform | TruncNormal | Choice | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.parameter, str):
+            raise ValueError(f"Same needs a parameter name, got {self.parameter!r}.")
+
+    @property
+    def apply(self) -> str:
+        return self.dist.apply
+
+    @property
+    def when(self):
+        return self.dist.when
+
+    def value(self, draw: float, nominal: float) -> float:
+        return self.dist.value(draw, nominal)
+
+    def support(self, nominal: float) -> tuple[float, float]:
+        return self.dist.support(nominal)
+
+    def ends(self) -> tuple[float, float]:
+        return self.dist.ends()
+
+
 DISTRIBUTIONS = {
     "uniform": Uniform,
     "loguniform": LogUniform,
     "truncnormal": TruncNormal,
     "choice": Choice,
+    "same": Same,
 }
 """The plain-dict form's `dist` names."""
-Distribution = Uniform | LogUniform | TruncNormal | Choice
+Distribution = Uniform | LogUniform | TruncNormal | Choice | Same
 
 
 def distribution(value, name: str = "") -> Distribution:
@@ -233,5 +266,5 @@ def distribution(value, name: str = "") -> Distribution:
     return Uniform(lo, hi)
 
 
-__all__ = ["APPLY", "DISTRIBUTIONS", "WHEN", "Choice", "LogUniform", "TruncNormal", "Uniform",
-           "distribution"]  # fmt: skip
+__all__ = ["APPLY", "DISTRIBUTIONS", "WHEN", "Choice", "LogUniform", "Same", "TruncNormal",
+           "Uniform", "distribution"]  # fmt: skip

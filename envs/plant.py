@@ -172,7 +172,7 @@ class Plant:
         if declared is not False and declared is not None:
             plant.randomize = Randomization.declare(plant.system, declared)
             max_input = opts.get("max_input")
-            rebuild = lambda k, v: build_plant(task, {**options, k: v}, max_input)  # noqa: E731
+            rebuild = lambda values: build_plant(task, {**options, **values}, max_input)  # noqa: E731
             plant.p_follows = warn_nominal(plant, rebuild)
         add_context(plant, get("observe_params"))
         plant.perturb = Perturbations.parse(get("perturb"), plant)

@@ -18,10 +18,12 @@ the env's seed being known only then, and again only at a reset given a seed, so
 `reset(seed=s)` reproduces a fresh env; autoresets and unseeded resets keep it), or an int
 k (at every reset and every k steps of the copy, mid-episode).
 
-Physically impossible draws are refused when the env is made, never redrawn: the values a
-declaration can reach (its support, after `apply`) must be finite, positive for a
-parameter the model declares positive, and meet the model's conditions at every corner of
-the box of supports (all lows and all highs beyond 10 parameters). Each copy draws from its
+`Same(name)` gives a parameter the draw of `name` (declared before it): a body's moments
+scaled by one factor stay a body's. Physically impossible draws are refused when the env
+is made, never redrawn: the values a declaration can reach (its support, after `apply`)
+must be finite, positive (or not negative) where the model declares so, and meet the
+model's conditions and give its bodies possible inertia over the whole box of supports
+(`dynamics.physical.box_problem`). Each copy draws from its
 own generator (the env's; copy i of a vector env: seed + i), parameters in the order
 declared, so a copy reproduces a single env seeded like it.
 
@@ -44,9 +46,10 @@ from functools import cached_property
 
 import numpy as np
 
+from dynamics import physical
 from dynamics.checks import did_you_mean, real_array
 
-from .distributions import Choice, LogUniform, TruncNormal, Uniform, distribution
+from .distributions import Choice, LogUniform, Same, TruncNormal, Uniform, distribution
 
 
 def parameter_name(system, key, where: str) -> None:
@@ -78,33 +81,23 @@ class Randomization:
                 "randomize must be a dict {parameter: (low, high) or a distribution}, got "
                 f"{type(value).__name__}."
             )
-        module, p = system.kernels()
         names = list(system.parameters)
-        positive = dict(zip(module.PARAMETERS, module.POSITIVE))
-        nominal = np.array(p.tolist(), dtype=np.float64)
-        dists, supports = {}, {}
+        nominal = np.array(list(system.parameters.values()), dtype=np.float64)
+        dists = {}
         for key, form in value.items():
             parameter_name(system, key, "randomize")
             dists[key] = d = distribution(form, key)
-            lo, hi = d.support(nominal[names.index(key)])
-            if not (np.isfinite(lo) and np.isfinite(hi)):
-                raise ValueError(f"randomize[{key!r}] = {form!r} reaches non-finite values.")
-            if positive[key] and not lo > 0:
-                raise ValueError(
-                    f"randomize[{key!r}] = {form!r} would draw impossible values: {key} of "
-                    f"{system.name} must be positive, so low must be > 0 (the lowest value "
-                    f"it reaches is {lo:.6g})."
-                )
-            supports[key] = (lo, hi)
-        keys = list(supports)
-        every = len(keys) <= 10  # every corner; beyond, all lows and all highs
-        for c in range(2 ** len(keys)) if every else range(2):
-            corner = {k: supports[k][(c >> j) & 1 if every else c] for j, k in enumerate(keys)}
-            try:
-                system.check_parameter_rows({k: [v] for k, v in corner.items()})
-            except ValueError as exc:
-                raise ValueError(f"randomize {value!r} reaches invalid parameters: {exc}") from None
-        return cls(dists, {k: names.index(k) for k in dists}, nominal)
+            if isinstance(d, Same):
+                dists[key] = _follow(d, key, dists)
+            check_support(system, key, form, dists[key].support(nominal[names.index(key)]))
+        columns = {k: names.index(k) for k in dists}
+        why = physical.box_problem(system.kernels()[0], nominal, _axes(dists, columns, nominal))
+        if why is not None:
+            raise ValueError(
+                f"randomize {value!r:.300} reaches impossible parameters of {system.name}: "
+                f"{why}.{_whole_bodies_hint(system, dists)}"
+            )
+        return cls(dists, columns, nominal)
 
     def support(self, name: str) -> tuple[float, float]:
         """The values parameter `name` can take."""
@@ -121,9 +114,71 @@ class Randomization:
 
     def draw_into(self, rng, row: np.ndarray, names) -> None:
         """Draw the parameters `names` (in the order declared) into `row` (n_p,)."""
+        draws = {}
         for name in names:
             d, j = self.dists[name], self.columns[name]
-            row[j] = d.value(d.sample(rng), self.nominal[j])
+            draws[name] = draws[d.parameter] if isinstance(d, Same) else d.sample(rng)
+            row[j] = d.value(draws[name], self.nominal[j])
+
+
+def _follow(d: Same, key: str, dists: dict) -> Same:
+    """`Same(parameter)` bound to that parameter's distribution (declared before it)."""
+    leader = dists.get(d.parameter)
+    if leader is None or isinstance(leader, Same) or d.parameter == key:
+        raise ValueError(
+            f"randomize[{key!r}] = Same({d.parameter!r}) needs {d.parameter!r} declared before "
+            f"it with a distribution of its own; declared before: {', '.join(dists) or 'none'}."
+            + did_you_mean(d.parameter, [k for k in dists if k != key])
+        )
+    return Same(d.parameter, leader)
+
+
+def check_support(system, key: str, form, support: tuple[float, float]) -> None:
+    """ValueError unless the values `support` of parameter `key` are finite and keep the
+    parameter's declared sign (positive, or not negative)."""
+    lo, hi = support
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise ValueError(f"randomize[{key!r}] = {form!r} reaches non-finite values.")
+    module = system.kernels()[0]
+    j = list(system.parameters).index(key)
+    positive = module.POSITIVE[j]
+    nonnegative = getattr(module, "NONNEGATIVE", (False,) * len(module.POSITIVE))[j]
+    if (positive and not lo > 0) or (nonnegative and not lo >= 0):
+        sign, bound = ("positive", "> 0") if positive else ("non-negative", ">= 0")
+        raise ValueError(
+            f"randomize[{key!r}] = {form!r} would draw impossible values: {key} of "
+            f"{system.name} must be {sign}, so low must be {bound} (the lowest value it "
+            f"reaches is {lo:.6g})."
+        )
+
+
+def _axes(dists: dict, columns: dict, nominal: np.ndarray) -> list:
+    """The box of a declaration for `dynamics.physical.box_problem`: one axis per
+    independent draw, moving its parameter and those declared Same as it."""
+    axes = []
+    for name, d in dists.items():
+        if isinstance(d, Same):
+            continue
+        cols = [columns[name]] + [columns[k] for k, f in dists.items() if
+                                  isinstance(f, Same) and f.parameter == name]  # fmt: skip
+        lo, hi = d.ends()
+        axes.append((name, cols, [d.value(lo, nominal[c]) for c in cols],
+                     [d.value(hi, nominal[c]) for c in cols]))  # fmt: skip
+    return axes
+
+
+def _whole_bodies_hint(system, dists: dict) -> str:
+    """How to draw a body's inertia as a whole, where the declaration draws its moments apart."""
+    for body, reads in system.bodies.items():
+        apart = [k for k in reads if k in dists and not isinstance(dists[k], Same)]
+        if len(apart) > 1:
+            first = apart[0]
+            same = ", ".join(f"{k!r}: Same({first!r})" for k in reads if k != first)
+            return (
+                f" Body {body!r} is drawn moment by moment; draw it as a whole, e.g. "
+                f"{{{first!r}: Uniform(0.75, 1.25, apply='scale'), {same}}}."
+            )
+    return ""
 
 
 def draw_params(plant, rngs, options, rows: list[int], batch: int | None, current, first):
@@ -260,8 +315,9 @@ def warn_nominal(plant, rebuild) -> bool:
     row, each row gets what its own record gives). A warning names what stays at the
     env's values in every copy: the declared numbers (input limits, bounds, the start
     distribution) that depend on a randomised parameter, and the functions and constants
-    too when they cannot follow. `rebuild(name, value)`: the plant with one parameter
-    changed."""
+    too when they cannot follow. `rebuild(values)`: the plant with the parameters of
+    `values` (name -> value) changed: one randomised parameter at an end of its range,
+    together with those drawn `Same` as it."""
     spec = plant.randomize
     nudged = record_rows(plant.p, 1)[0]
     for k in plant.p.dtype.names:  # every parameter and constant moved a little
@@ -269,10 +325,14 @@ def warn_nominal(plant, rebuild) -> bool:
     labels, follows = _functions_reading(plant, nudged)
     follows &= bool(labels)
     changed = {}
-    for name in spec.dists:
+    for name, d in spec.dists.items():
+        if isinstance(d, Same):
+            continue
         changed[name] = set()
-        for end in spec.support(name):
-            other = rebuild(name, end)
+        group = [name] + [k for k, f in spec.dists.items() if getattr(f, "parameter", 0) == name]
+        for end in d.ends():
+            other = rebuild({k: spec.dists[k].value(end, spec.nominal[spec.columns[k]])
+                             for k in group})  # fmt: skip
             changed[name] |= {
                 k for k in _RESOLVED if not np.array_equal(getattr(other, k), getattr(plant, k))
             }
@@ -391,6 +451,7 @@ __all__ = [
     "Choice",
     "LogUniform",
     "Randomization",
+    "Same",
     "TruncNormal",
     "Uniform",
     "distribution",
