@@ -17,9 +17,13 @@ discarded, not opened for reading).
 What is in the cache runs as code: the modules when loaded, numba's files when numba
 unpickles them. So the directory must be writable by its user alone. It is
 ``$LAGRANGE_GYM_CACHE`` if set, else ``$XDG_CACHE_HOME/lagrange-gym`` (or
-``~/.cache/lagrange-gym``), created private to its user (0o700). One that another user owns
-or that group or others may write is not used: models are then built in a private temporary
-directory removed at exit, with one warning saying why (as when it cannot be written).
+``~/.cache/lagrange-gym``), created private to its user (0o700), and so is numba's
+``__pycache__`` in it (made here before numba would make it with the process umask). One that
+another user owns, or that another user may write (others' write permission, or the group's
+where the group has a member besides this user: under umask 002 with a user's private group,
+group-writable folders are still the user's alone) is not used: models are then built in a
+private temporary directory removed at exit, with one warning saying why (as when it cannot
+be written).
 """
 
 from __future__ import annotations
@@ -72,6 +76,11 @@ def cache_dir() -> Path:
             f"Cannot create the model cache {path}; set {ENV_VAR} to a writable directory."
         ) from exc
     for folder in (path, path / "__pycache__"):
+        if folder.name == "__pycache__":  # numba would make it with the umask (0o775 for 002)
+            try:
+                folder.mkdir(mode=0o700, exist_ok=True)
+            except OSError:
+                pass  # a read-only cache: checked below all the same
         problem = _unsafe(folder)
         if problem:
             raise UnsafeCacheError(
@@ -87,16 +96,42 @@ class UnsafeCacheError(OSError):
 
 def _unsafe(folder: Path) -> str | None:
     """Why `folder` (if it exists; a link is followed) cannot be trusted: another owner, or
-    write permission for group or others."""
+    write permission for another user (others, or a group with a member besides this user)."""
     try:
         st = folder.stat()
     except FileNotFoundError:
         return None
     if st.st_uid != os.geteuid():
         return f"is owned by uid {st.st_uid}, not by this user (uid {os.geteuid()})"
-    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+    mode = stat.S_IMODE(st.st_mode)
+    if mode & stat.S_IWOTH:
+        return f"is writable by others (mode {mode:04o})"
+    if mode & stat.S_IWGRP:
+        others = group_members_besides_me(st.st_gid)
+        if others:
+            return (
+                f"is writable by others: by its group (mode {mode:04o}), whose members include "
+                f"{', '.join(others[:3])}"
+            )
     return None
+
+
+def group_members_besides_me(gid: int) -> list[str]:
+    """The users other than this one who belong to group `gid` (its listed members and the
+    users whose primary group it is); ['unknown users'] where that cannot be told."""
+    try:
+        import grp
+        import pwd
+    except ImportError:  # not POSIX
+        return ["unknown users"]
+    me = os.geteuid()
+    try:
+        group = grp.getgrgid(gid)
+        names = set(group.gr_mem) | {u.pw_name for u in pwd.getpwall() if u.pw_gid == gid}
+        mine = {u.pw_name for u in pwd.getpwall() if u.pw_uid == me}
+    except (KeyError, OSError):
+        return ["unknown users"]
+    return sorted(names - mine)
 
 
 def _private_dir(reason: Exception) -> Path:

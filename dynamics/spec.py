@@ -15,7 +15,6 @@ import numpy as np
 import sympy as sp
 import sympy.physics.mechanics as me
 
-from . import checks
 from .calculus import compact
 
 t = me.dynamicsymbols._t
@@ -34,7 +33,12 @@ class Param:
     nonnegative: bool = field(default=False, repr=False)
 
     def __post_init__(self):
-        checks.parameter("a Param", "default", self.default)  # finite, real, no boolean
+        d = self.default
+        real = isinstance(d, (int, float, np.integer, np.floating))
+        if isinstance(d, (bool, np.bool_)) or not real:
+            raise TypeError(f"Param.default must be a real number, got {d!r}.")
+        if not np.isfinite(d):
+            raise ValueError(f"Param.default must be finite, got {d!r}.")
         for flag in ("positive", "nonnegative"):
             if not isinstance(getattr(self, flag), (bool, np.bool_)):
                 raise TypeError(f"Param.{flag} must be True or False, got {getattr(self, flag)!r}.")

@@ -362,3 +362,53 @@ def test_a_factory_is_keyed_on_the_users_modules_it_imports(tmp_path, monkeypatc
     before = model_module._code_fingerprint.__wrapped__("k_factory:factory")
     (tmp_path / "k_consts.py").write_text("LENGTH = 2.0\n")
     assert model_module._code_fingerprint.__wrapped__("k_factory:factory") != before
+
+
+@contextlib.contextmanager
+def _umask(mask: int):
+    import os
+
+    old = os.umask(mask)
+    try:
+        yield
+    finally:
+        os.umask(old)
+
+
+def test_a_cache_made_under_umask_002_is_used_its_numba_folder_private(tmp_path, monkeypatch):
+    """Under umask 002 (group-writable folders by default) the cache and numba's
+    __pycache__ are made 0o700 here, and the second load finds the first one's module."""
+    key, body, path = _toy(tmp_path, monkeypatch)
+    with _umask(0o002), warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no "not used" warning
+        assert cache.load("toy", key, body).VALUE == 1
+        monkeypatch.setattr(cache, "_loaded", {})
+        assert cache.load("toy", key).VALUE == 1  # from disk, not rebuilt
+    for folder in (path.parent, path.parent / "__pycache__"):
+        assert stat.S_IMODE(folder.stat().st_mode) == 0o700
+
+
+@pytest.mark.parametrize("members, used", [([], True), (["mallory"], False)])
+def test_a_group_writable_cache_is_refused_only_when_another_user_is_in_the_group(
+    tmp_path, monkeypatch, members, used
+):
+    """Group write permission is another user's only where the group has another member
+    (with a user's private group, the common case under umask 002, it is not)."""
+    root = tmp_path / "cache"
+    (root / "__pycache__").mkdir(parents=True)
+    for folder in (root, root / "__pycache__"):
+        folder.chmod(0o775)  # as numba makes it under umask 002
+    monkeypatch.setattr(cache, "group_members_besides_me", lambda gid: members)
+    key, body, path = _toy(tmp_path, monkeypatch, root)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cache.load("toy", key, body).VALUE == 1
+    refused = [w for w in caught if "model cache is not used" in str(w.message)]
+    assert path.exists() is used
+    assert bool(refused) is not used
+    if refused:
+        assert "mallory" in str(refused[0].message)
+
+
+def test_a_group_that_cannot_be_looked_up_counts_as_shared():
+    assert cache.group_members_besides_me(2**31 - 7) == ["unknown users"]
