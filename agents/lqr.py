@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     region = {k: args.scale * v for k, v in base_region.items()}
     print(f"\nstarts: operating point + uniform perturbation within +- {region}")
     lqr_policy = lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)  # noqa: E731
-    for name, pol in (("LQR", lqr_policy), ("zero torque", ZeroPolicy)):
+    for name, pol in (("LQR", lqr_policy), ("zero input", ZeroPolicy)):
         r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale)
         print(
             f"{name:>11}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}), "

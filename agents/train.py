@@ -155,6 +155,8 @@ def train(
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
     if randomize is None and resume:
         randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
+    elif resume:  # another setting would rewrite the record of what the run trained on
+        randomization.check_resume(run_dir, randomize)
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing

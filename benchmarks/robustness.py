@@ -106,7 +106,7 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) ->
     out = []
     for name in names:
         if name in inertial or name in bodies or name == ALL_INERTIAL:
-            moved = {name: [name], ALL_INERTIAL: inertial}.get(name) or bodies[name]
+            moved = inertial if name == ALL_INERTIAL else bodies.get(name, [name])
             label = {ALL_INERTIAL: "every mass and inertia"}.get(name, name)
             out.append(_scaled(system, name, f"{label} / nominal", moved, scales))
         elif name == "obs_noise":

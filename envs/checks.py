@@ -128,8 +128,25 @@ def check_with_model(plant) -> None:
                 f"observation ({label})",
                 f"bounds [{lo:.6g}, {hi:.6g}] must be finite with low <= high.",
             )
+    _check_starts(plant)
     _check_inputs(plant)
     _check_mass(plant)
+
+
+def _check_starts(plant) -> None:
+    """The start distribution (a function's too, tried here on sample draws) gives states
+    within the task's limits: one beyond would be observed clipped and end at once."""
+    x = plant.sample_states(8)
+    over = np.abs(x) > plant.limits
+    if over.any():
+        row, i = (int(v) for v in np.argwhere(over)[0])
+        raise _fail(
+            plant.task.name,
+            "start",
+            f"gives {plant.state_names[i]} = {x[row, i]:.6g}, beyond `limits"
+            f"[{plant.state_names[i]!r}]` = {plant.limits[i]:.6g}: every such episode would "
+            "end at once.",
+        )
 
 
 def _check_inputs(plant) -> None:

@@ -13,18 +13,24 @@ import numpy as np
 from scipy.special import ndtr, ndtri
 
 from dynamics import checks
-from dynamics.checks import real_array
+from dynamics.checks import did_you_mean, real_array
 
 APPLY = ("absolute", "scale", "offset")
 WHEN = ("reset", "construction")
 
 
+MAX_WHEN = 2**31 - 1
+"""The longest redraw interval in steps (a copy's step count is an int64; far beyond any
+episode)."""
+
+
 def _when(when) -> str | int:
     whole = isinstance(when, (int, np.integer)) and not isinstance(when, bool)
-    if when in WHEN or (whole and when >= 1):
+    if (isinstance(when, str) and when in WHEN) or (whole and 1 <= when <= MAX_WHEN):
         return int(when) if whole else when
     raise ValueError(
-        f"when must be 'reset', 'construction' or a whole number of steps >= 1, got {when!r}."
+        f"when must be 'reset', 'construction' or a whole number of steps in 1..{MAX_WHEN}, "
+        f"got {when!r:.60}.{did_you_mean(when, WHEN) if isinstance(when, str) else ''}"
     )
 
 
@@ -39,8 +45,11 @@ class _Distribution:
     """What the distributions share: `apply`, `when`, their checks and `support`."""
 
     def _check(self) -> None:
-        if self.apply not in APPLY:
-            raise ValueError(f"apply must be one of {APPLY}, got {self.apply!r}.")
+        if not isinstance(self.apply, str) or self.apply not in APPLY:
+            raise ValueError(
+                f"apply must be one of {APPLY}, got {self.apply!r}."
+                + (did_you_mean(self.apply, APPLY) if isinstance(self.apply, str) else "")
+            )
         object.__setattr__(self, "when", _when(self.when))
 
     def value(self, draw: float, nominal: float) -> float:
@@ -173,8 +182,9 @@ class Choice(_Distribution):
                     f"Choice.weights must be {len(self.values)} finite numbers >= 0, "
                     f"got {self.weights!r}."
                 )
-            if not w.sum() > 0:
+            if not w.max() > 0:
                 raise ValueError("Choice.weights must not all be 0.")
+            w = w / w.max()  # (weights near the float limit would sum to inf)
             object.__setattr__(self, "weights", tuple((w / w.sum()).tolist()))
         self._check()
 

@@ -169,6 +169,11 @@ class Perturbations:
                 raise ValueError(
                     f"perturb['delay'] must be an int >= 0 (control periods), got {d!r}."
                 )
+            if d > plant.task.max_episode_steps:
+                raise ValueError(
+                    f"perturb['delay'] = {d} control periods is longer than an episode "
+                    f"({plant.task.max_episode_steps}): no command would ever act."
+                )
             out["delay"] = int(d)
         if "push" in value:
             out["push"] = _push(value["push"], plant)
@@ -199,6 +204,12 @@ def _push(value, plant) -> Push:
     force = _positive(value, "force", None, zero_ok=True)
     every = _positive(value, "every", 2.0)
     duration = _positive(value, "duration", 0.1)
+    longest = plant.task.max_episode_steps * plant.control_period
+    if duration > longest:
+        raise ValueError(
+            f"perturb['push']['duration'] = {duration:g} s is longer than an episode "
+            f"({longest:g} s): give at most that (a push lasting the whole episode)."
+        )
     periods = max(1, round(duration / plant.control_period))
     return Push(force, every, periods, point, list(points).index(point), points[point])
 

@@ -46,7 +46,7 @@ from functools import cached_property
 
 import numpy as np
 
-from dynamics import physical
+from dynamics import checks, physical
 from dynamics.checks import did_you_mean, real_array
 
 from .distributions import Choice, LogUniform, Same, TruncNormal, Uniform, distribution
@@ -139,6 +139,11 @@ def check_support(system, key: str, form, support: tuple[float, float]) -> None:
     lo, hi = support
     if not (np.isfinite(lo) and np.isfinite(hi)):
         raise ValueError(f"randomize[{key!r}] = {form!r} reaches non-finite values.")
+    for end in (lo, hi):  # magnitudes the generated expressions can multiply (dynamics.checks)
+        try:
+            checks.parameter(system.name, key, end)
+        except ValueError as exc:
+            raise ValueError(f"randomize[{key!r}] = {form!r}: {exc}") from None
     module = system.kernels()[0]
     j = list(system.parameters).index(key)
     positive = module.POSITIVE[j]
