@@ -303,6 +303,97 @@ def load_or_build(name: str, key: str, build: Callable[[], str]) -> ModuleType:
     return module
 
 
+def foreign_code(fn) -> str | None:
+    """sha256 of the code of every Python function `fn` reaches (through globals, closures,
+    defaults, `module.attr`) that is defined in another file than `fn`, or None when it
+    reaches none. Library functions (numpy, math, numba) are not followed."""
+    import types
+
+    fn = _function(fn)
+    if fn is None:
+        return None
+    home, seen, todo = fn.__code__.co_filename, set(), [fn]
+    h, foreign = hashlib.sha256(), False
+    while todo:
+        f = _function(todo.pop())
+        if f is None or id(f) in seen:
+            continue
+        seen.add(id(f))
+        if f.__code__.co_filename != home:
+            foreign = True
+            h.update(f"{f.__code__.co_filename}:{f.__qualname__}".encode())
+            _hash_code(h, f.__code__)
+        names = _code_names(f.__code__)
+        reached = [f.__globals__.get(n) for n in names]
+        reached += [c.cell_contents for c in f.__closure__ or () if _assigned(c)]
+        reached += list(f.__defaults__ or ())
+        for obj in list(reached):
+            if isinstance(obj, types.ModuleType) and not _library_module(obj):
+                reached += [getattr(obj, n, None) for n in names]
+        todo += [o for o in reached if _function(o) is not None]
+    return h.hexdigest() if foreign else None
+
+
+def keep_numba_cache_true(dispatcher, fn) -> None:
+    """numba keys a function's cached machine code on its own source file only, though that
+    code includes every jitted helper it calls: after an edit of a helper in another file,
+    the cache would serve the old helper. Here the code of those helpers (`foreign_code`) is
+    kept beside the model cache, and numba's cache of `dispatcher` (compiled from `fn`,
+    before its first call) is emptied when it changed, so numba compiles afresh."""
+    digest = foreign_code(fn)
+    if digest is None:
+        return
+    code = fn.__code__
+    name = hashlib.sha256(f"{code.co_filename}:{fn.__qualname__}:{code.co_firstlineno}".encode())
+    try:
+        stamp = cache_dir() / "numba-stamps" / name.hexdigest()[:32]
+        if stamp.is_file() and read_bytes(stamp).decode() == digest:
+            return
+        dispatcher._cache.flush()  # numba's FunctionCache: drop every entry of the index
+        stamp.parent.mkdir(mode=0o700, exist_ok=True)
+        write_atomic(stamp, digest)
+    except (OSError, AttributeError, UnicodeDecodeError):
+        return  # no cache to keep (a read-only one): numba's own rules
+
+
+def _hash_code(h, code) -> None:
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if hasattr(const, "co_code"):
+            _hash_code(h, const)
+        else:
+            h.update(repr(const).encode())
+
+
+def _function(obj):
+    import types
+
+    obj = getattr(obj, "py_func", obj)
+    return obj if isinstance(obj, types.FunctionType) and not _library_module(obj) else None
+
+
+def _library_module(obj) -> bool:
+    name = getattr(obj, "__name__", "") if isinstance(obj, type(sys)) else obj.__module__ or ""
+    return name.partition(".")[0] in ("numpy", "numba", "math", "cmath", "builtins")
+
+
+def _code_names(code) -> set[str]:
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if hasattr(const, "co_names"):
+            names |= _code_names(const)
+    return names
+
+
+def _assigned(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018 (an empty cell raises)
+    except ValueError:
+        return False
+    return True
+
+
 class _lock:
     """An exclusive flock on the model's lock file; no-op where that cannot be had."""
 

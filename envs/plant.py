@@ -22,6 +22,7 @@ import numpy as np
 
 import dynamics
 from dynamics.checks import did_you_mean
+from dynamics.model import factory_target
 from dynamics.system import method_tableau
 
 from . import checks
@@ -65,13 +66,11 @@ def _model(model) -> dynamics.Model:
         return dynamics.get_model(model)
     if isinstance(model, dynamics.Model):
         return model
-    if callable(model):
-        module, qualname = getattr(model, "__module__", None), getattr(model, "__qualname__", "")
-        if module and "<" not in qualname and module != "__main__":
-            # an importable factory: keyed by its source file, so a warm cache never
-            # rebuilds the spec (as for the registered models)
-            return dynamics.Model(f"{module}:{qualname}", name=model.__name__)
-        return dynamics.Model(model)
+    if callable(model) or isinstance(model, staticmethod):
+        target = factory_target(model)  # importable: keyed by its source file, and a warm
+        if target is None:  # cache never rebuilds the spec (as for the registered models)
+            return dynamics.Model(model)
+        return dynamics.Model(target, name=target.rsplit(".", 1)[-1].split(":")[-1])
     raise TypeError(
         "A task's model must be a registered model name, a dynamics.Model, a ModelSpec "
         f"factory or a dynamics.System; got {type(model).__name__}."

@@ -219,9 +219,7 @@ def _toy(tmp_path, monkeypatch, root=None):
     return key, f"KEY = {key!r}\nVALUE = 1\n", root / f"toy_{key[:20]}.py"
 
 
-def test_a_module_whose_text_differs_from_the_expected_is_rewritten_not_run(
-    tmp_path, monkeypatch
-):
+def test_a_module_whose_text_differs_from_the_expected_is_rewritten_not_run(tmp_path, monkeypatch):
     """The fused step's loader knows the exact text: an edited body under a recomputed
     (self-consistent) header is not run."""
     key, body, path = _toy(tmp_path, monkeypatch)
@@ -412,3 +410,37 @@ def test_a_group_writable_cache_is_refused_only_when_another_user_is_in_the_grou
 
 def test_a_group_that_cannot_be_looked_up_counts_as_shared():
     assert cache.group_members_besides_me(2**31 - 7) == ["unknown users"]
+
+
+@pytest.mark.slow  # two fresh processes compiling with numba: ~5 s
+def test_an_edited_helper_in_another_file_is_not_served_from_numba_s_cache(tmp_path):
+    """numba keys a cached function on its own file only; the helper it calls lives in
+    another file, whose edit must still reach the compiled function."""
+    import os
+
+    helper = tmp_path / "helper_mod.py"
+    helper.write_text(
+        "from numba import njit\n\n\n@njit(cache=True)\ndef helper(x):\n    return x * 2.0\n"
+    )
+    (tmp_path / "task_mod.py").write_text(
+        "from helper_mod import helper\n\n\ndef reward(x):\n    return helper(x) + 1.0\n"
+    )
+    code = (
+        "import numba, task_mod\n"
+        "from dynamics.cache import keep_numba_cache_true\n"
+        "j = numba.njit(cache=True)(task_mod.reward)\n"
+        "keep_numba_cache_true(j, task_mod.reward)\n"
+        "print(j(1.0))\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{root}",
+           "LAGRANGE_GYM_CACHE": str(tmp_path / "cache")}  # fmt: skip
+
+    def run() -> str:
+        out = subprocess.run([sys.executable, "-c", code], env=env, cwd=tmp_path,
+                             capture_output=True, text=True, check=True)  # fmt: skip
+        return out.stdout.strip()
+
+    assert run() == "3.0"
+    helper.write_text(helper.read_text().replace("x * 2.0", "x * 5.0"))
+    assert run() == "6.0"
