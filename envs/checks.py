@@ -128,9 +128,29 @@ def check_with_model(plant) -> None:
                 f"observation ({label})",
                 f"bounds [{lo:.6g}, {hi:.6g}] must be finite with low <= high.",
             )
+    _check_goal_observed(plant)
     _check_starts(plant)
     _check_inputs(plant)
     _check_mass(plant)
+
+
+def _check_goal_observed(plant) -> None:
+    """A goal component drawn at reset that the operating point needs (LQR, the heuristics
+    and the hand-over regulate to it) must be read back from the observation: refused
+    here, rather than when an agent first asks."""
+    missing = plant._goal_from_obs[3]
+    op = plant.task.operating_point
+    if not missing or op is None:
+        return
+    needed = list(missing) if callable(op) else [g for g in missing if g in op.values()]
+    if needed:
+        raise _fail(
+            plant.task.name,
+            "observation",
+            f"shows no goal component {', '.join(map(repr, needed))}, which is drawn at reset "
+            "and which the operating point needs: no agent could tell the goal it should "
+            "reach. Observe it (e.g. Value(name) or AngleError(state, goal)).",
+        )
 
 
 def _check_starts(plant) -> None:
