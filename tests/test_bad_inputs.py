@@ -126,7 +126,7 @@ def test_no_impossible_body_is_simulated(case):
 
 def test_a_non_negative_parameter_refuses_a_negative_value_and_range():
     from dynamics.system import check_parameters
-    from envs.randomize import check_support
+    from envs.randomize_checks import check_support
 
     with pytest.raises(ValueError, match="'mu' of toy must not be negative"):
         check_parameters("toy", ("mu",), (0.1,), (False,), {"mu": -0.1}, (True,))
