@@ -103,6 +103,13 @@ def _unsafe(folder: Path) -> str | None:
         return None
     if st.st_uid != os.geteuid():
         return f"is owned by uid {st.st_uid}, not by this user (uid {os.geteuid()})"
+    return _writable_by_others(folder, st)
+
+
+def _writable_by_others(path: Path, st=None) -> str | None:
+    """Why another user may write `path` (others' write permission, or the group's where
+    the group has a member besides this user), or None."""
+    st = st or path.stat()
     mode = stat.S_IMODE(st.st_mode)
     if mode & stat.S_IWOTH:
         return f"is writable by others (mode {mode:04o})"
@@ -236,6 +243,9 @@ def _load_file(path: Path, key: str, expected: str | None = None) -> ModuleType 
     """The verified module at `path`, or None (a damaged file is discarded). With
     `expected`, the file must hold exactly that text."""
     try:
+        if _writable_by_others(path):  # a file another user may have written: not run
+            _discard(path)
+            return None
         text = read_bytes(path).decode("utf-8")
     except FileNotFoundError:
         return None

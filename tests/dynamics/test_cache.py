@@ -444,3 +444,13 @@ def test_an_edited_helper_in_another_file_is_not_served_from_numba_s_cache(tmp_p
     assert run() == "3.0"
     helper.write_text(helper.read_text().replace("x * 2.0", "x * 5.0"))
     assert run() == "6.0"
+
+
+def test_a_module_file_another_user_may_write_is_rebuilt_not_run(tmp_path, monkeypatch):
+    key, body, path = _toy(tmp_path, monkeypatch)
+    marker = tmp_path / "ran"
+    path.parent.mkdir(mode=0o700)
+    path.write_text(cache.stamped(key, body + f"open({str(marker)!r}, 'w').close()\n"))
+    path.chmod(0o666)  # a stamped, self-consistent file anyone may have written
+    assert cache.load("toy", key) is None  # discarded, not run
+    assert not marker.exists() and not path.exists()
