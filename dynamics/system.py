@@ -470,7 +470,7 @@ def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(a, b, c) of the integrator named `method`; ValueError naming the known ones."""
     tableau = METHODS.get(method) if isinstance(method, str) else None
     if tableau is None:
-        raise ValueError(f"Unknown integrator {method!r}; known: {', '.join(map(repr, METHODS))}.")
+        raise checks.unknown("integrator", method, checks.INTEGRATORS)
     return tableau.a, tableau.b, tableau.c
 
 

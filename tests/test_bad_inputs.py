@@ -327,6 +327,7 @@ def test_every_factory_form_builds_the_model():
 MISSPELT = {
     "env option": (lambda: _make(ARM, integrater="rk4"), "Did you mean 'integrator'?"),
     "parameter": (lambda: _make(ARM, mm2=2.0), "Did you mean 'm2'?"),
+    "integrator option": (lambda: _make(ARM, integrator="rk5"), "Did you mean 'rk4'?"),
     "perturbation key": (lambda: _make(ARM, perturb={"obs_nois": 0.1}), "'obs_noise'?"),
     "push key": (lambda: _make(ARM, perturb={"push": {"forse": 1.0}}), "'force'?"),
     "distribution": (
