@@ -230,6 +230,10 @@ def whipple_bicycle() -> ModelSpec:
         points={"rear_frame": v_B},
         # the wheels are bodies of revolution (a diameter, the axle, a diameter); the frames'
         # tensors about their mass centres: each set of values must be some body's inertia
-        bodies={"rear wheel": (I_Rxx, I_Ryy, I_Rxx), "rear frame": I_B, "front frame": I_H,
-                "front wheel": (I_Fxx, I_Fyy, I_Fxx)},  # fmt: skip
+        bodies={
+            "rear wheel": (I_Rxx, I_Ryy, I_Rxx),
+            "rear frame": I_B,
+            "front frame": I_H,
+            "front wheel": (I_Fxx, I_Fyy, I_Fxx),
+        },
     )
