@@ -23,7 +23,6 @@ wheel's radius). A named entry overrides what `inertial` set for that parameter.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from .common import UserError
 from .values import Bad, short
@@ -155,27 +154,6 @@ def recorded(randomize: dict) -> dict:
     """The env option `randomize=` as the run's config.yml keeps it: (low, high) as lists,
     the declared dict forms as they are."""
     return {k: dict(v) if isinstance(v, dict) else list(v) for k, v in randomize.items()}
-
-
-def check_resume(run_dir, setting: dict | None) -> None:
-    """UserError when `setting` differs from the `randomize` the run in `run_dir` recorded
-    (its config.yml): a resumed run trains on what it began with, and its record says so."""
-    from .rundir import read_config
-
-    config = read_config(Path(run_dir))
-    if not config:
-        return
-    recorded = (config.get("hyperparams") or {}).get("randomize")
-    try:
-        given = check_setting(setting)
-    except Bad as exc:
-        raise UserError(f"randomize: {exc}.") from None
-    if given != (None if recorded is None else check_setting(recorded)):
-        raise UserError(
-            f"{run_dir} was trained with {describe(recorded)}, not {describe(given)}; "
-            "--resume continues a run with its own settings (leave --randomize out), or "
-            "start another run (--run-dir) with the new ones."
-        )
 
 
 def scaled(nominal: float, fraction: float) -> tuple[float, float]:

@@ -53,6 +53,7 @@ from .common import (
 from .curves import CurveLogger
 from .hparams import ALGOS, algorithms, check_entries, load_hyperparams
 from .rundir import (
+    check_resume_randomize,
     default_run_dir,
     exclusive,
     prepare_run_dir,
@@ -156,7 +157,7 @@ def train(
     if randomize is None and resume:
         randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
     elif resume:  # another setting would rewrite the record of what the run trained on
-        randomization.check_resume(run_dir, randomize)
+        check_resume_randomize(run_dir, randomize)
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing

@@ -257,7 +257,7 @@ def test_choice_weights_near_the_float_limit_draw_normally():
 def test_a_resume_with_another_randomisation_is_refused(tmp_path):
     import yaml
 
-    from agents.randomization import check_resume
+    from agents.rundir import check_resume_randomize as check_resume
 
     config = {"env_id": ARM, "algo": "ppo", "hyperparams": {"randomize": {"inertial": 0.25}}}
     (tmp_path / "config.yml").write_text(yaml.safe_dump(config))
