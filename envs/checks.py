@@ -130,6 +130,7 @@ def check_with_model(plant) -> None:
             )
     _check_goal_observed(plant)
     _check_starts(plant)
+    _check_operating_point(plant)
     _check_inputs(plant)
     _check_mass(plant)
 
@@ -150,6 +151,30 @@ def _check_goal_observed(plant) -> None:
             f"shows no goal component {', '.join(map(repr, needed))}, which is drawn at reset "
             "and which the operating point needs: no agent could tell the goal it should "
             "reach. Observe it (e.g. Value(name) or AngleError(state, goal)).",
+        )
+
+
+def _check_operating_point(plant) -> None:
+    """An operating-point function, tried on sample goals and starts: one finite state per
+    row (its slips surface here, not when an agent first asks)."""
+    if not callable(plant.task.operating_point):
+        return
+    rows, g = plant.sample_rows(4)
+    x = rows[:, : len(plant.state_names)]
+    try:
+        with np.errstate(all="ignore"):
+            x0 = plant.operating_state(g, x)
+    except Exception as exc:  # the task's own function: any error is its slip
+        raise _fail(
+            plant.task.name, "operating_point", f"fails on sample rows: {type(exc).__name__}: {exc}"
+        ) from None
+    if x0.shape != x.shape or not np.isfinite(x0).all():
+        raise _fail(
+            plant.task.name,
+            "operating_point",
+            f"must give a finite state per row, shape {x.shape}; got shape {x0.shape}"
+            + ("" if x0.shape != x.shape else " with NaN or inf")
+            + ".",
         )
 
 

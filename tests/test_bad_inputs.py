@@ -48,6 +48,10 @@ def _start_far_out(rng, p):
     return np.array([10.0, 0.0, 0.0, 0.0]), np.zeros(0)
 
 
+def _nan_point(g, x, system):
+    return np.full((len(x), 4), np.nan)
+
+
 def _x_star():
     goal = (envs.Goal("x*", "m", -1.0, 1.0),)
     return dataclasses.replace(BASE, goal=goal, operating_point={"x": "x*"})
@@ -289,6 +293,11 @@ MODELS = {
         lambda: dynamics.Model(lambda: 42).spec,
         TypeError,
         ["returned int, not a dynamics.ModelSpec"],
+    ),
+    "an operating-point function giving NaN": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_nan_point)),
+        DeclarationError,
+        ["`operating_point`", "NaN or inf"],
     ),
     "a goal the operating point needs, unobserved": (
         lambda: envs.LagrangianEnv(_x_star()),
