@@ -80,7 +80,7 @@ def real_array(value, label: str, owner: str = "") -> np.ndarray:
             return np.asarray(np.frompyfunc(_number, 1, 1)(a), dtype=np.float64)
         except (TypeError, ValueError):
             pass
-    raise TypeError(f"{_label(owner, label)} must be real numbers, got {value!r:.200}.")
+    raise TypeError(f"{_label(owner, label)} must be numeric (real numbers), got {value!r:.200}.")
 
 
 def _number(v) -> float:
