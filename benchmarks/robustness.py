@@ -11,7 +11,10 @@ perturbations): one quantity at a time is moved away from the nominal plant over
 and every agent runs the same seeded episodes at every point:
 
 - each inertial parameter (kg, kg*m^2: agents.randomization) over [0.75, 1.25] x nominal,
-  and all of them together (`inertial`: every mass and inertia times the same factor);
+  each body the model declares as a whole (`body NAME`: its moments times one factor), and
+  all of them together (`inertial`: every mass and inertia times the same factor); a point
+  that gives a body an inertia no mass distribution has (or breaks a model condition) is
+  skipped and listed with the reason, the other points of its grid kept;
 - obs_noise: Gaussian noise on every observation feature, std 0 .. 0.1 in its units;
 - action_noise: Gaussian noise on the applied input, std 0 .. 0.4 x the input's limit;
 - motor_k: first-order motor response u += k (u_cmd - u), k in [0.1, 2];
@@ -30,6 +33,7 @@ Trained models are read from `--models DIR` (DIR/ENV/nominal and DIR/ENV/randomi
 directories of agents.train) and trained there with the task's budget when missing
 (`--no-train` skips them instead).
 
+Every argument is checked before any work (one line and exit status 2 otherwise).
 Writes results.json and results.md to --out (success with Wilson 95 % intervals per env,
 agent, quantity and grid point; where LQR drops below 50 %) and one figure per env to
 --figures (default: --out), each file atomically. Prints the machine's load with the table.
