@@ -8,13 +8,13 @@ that reject bad budgets with a clear message.
 from __future__ import annotations
 
 import argparse
-import difflib
 import importlib
 import math
 from typing import NoReturn
 
 import gymnasium as gym
 
+from dynamics.checks import did_you_mean
 from dynamics.files import (
     atomic_path,  # noqa: F401  (re-exported: one atomic writer)
     write_atomic,  # noqa: F401
@@ -54,10 +54,9 @@ def check_env_id(env_id: str, lagrange: bool = False) -> str:
         env_id = name
     if env_id not in gym.registry:
         known = sorted(gym.registry)
-        close = difflib.get_close_matches(env_id, known, n=3, cutoff=0.6)
-        if not close:  # 'TwoLinkArm' should still find 'Lagrange/TwoLinkArm-v1'
-            close = [k for k in known if env_id.lower() in k.lower()][:3]
-        hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
+        hint = did_you_mean(env_id, known, n=3)
+        if not hint:  # 'TwoLinkArm' should still find 'Lagrange/TwoLinkArm-v1'
+            hint = did_you_mean(env_id, [k for k in known if env_id.lower() in k.lower()], 3)
         raise UserError(
             f"Unknown environment id {env_id!r}.{hint} Lagrange environments: "
             f"{', '.join(register_envs())}; a system of your own: 'your.module:NS/Name-v0'."

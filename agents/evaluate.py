@@ -55,7 +55,7 @@ def make_agent(name: str, env, seed: int = 0):
     if name == "random":
         return RandomPolicy(space, seed)
     if name == "zero":
-        return ZeroPolicy(space)
+        return ZeroPolicy(env)
     if name == "heuristic":
         return build_heuristic(env)
     if name == "lqr":

@@ -36,6 +36,9 @@ from .common import UserError, lagrange_env
 from .lqr_policy import LQRPolicy
 
 HANDOVER_KEYS = ("level", "shaping", "verify", "verify_level")
+MAX_SHAPING = 1e6
+"""The largest shaping coefficient: the energy gap is scaled to about 1 per unit, so the
+shaping term is then a million times a typical reward term, and 1e308 made it infinite."""
 VERIFY_REACH = 20.0
 """The default verify_level in levels: the acrobot's PPO passes within 1-3 levels of the
 set when it misses it (see the module docstring)."""
@@ -76,11 +79,12 @@ def check_handover(raw) -> dict:
     if not (
         out["level"] > 0
         and out["verify_level"] >= out["level"]
-        and out["shaping"] >= 0
+        and 0 <= out["shaping"] <= MAX_SHAPING
         and 0 <= out["verify"] <= VERIFY_MAX
     ):
         raise ValueError(
-            "a table with a positive level, verify_level at least the level, shaping >= 0 "
+            "a table with a positive level, verify_level at least the level, shaping in "
+            f"[0, {MAX_SHAPING:g}] "
             f"and verify in [0, {VERIFY_MAX:g}] seconds"
         )
     return out

@@ -18,12 +18,13 @@ would otherwise expand to gigabytes), and messages show values shortened.
 
 from __future__ import annotations
 
-import difflib
 import inspect
 from pathlib import Path
 
 import numpy as np
 import yaml
+
+from dynamics.checks import ALGORITHMS, unknown
 
 from .common import UserError, task_of
 from .values import (
@@ -58,11 +59,11 @@ def algorithms() -> dict:
     """The algorithms by name: the one table (SB3's classes, imported on first use)."""
     from stable_baselines3 import PPO, SAC, TD3
 
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}  # in the order of ALGOS (tested)
 
 
-ALGOS = ("ppo", "sac", "td3")
-"""The names of `algorithms()` (without importing SB3)."""
+ALGOS = ALGORITHMS
+"""The names of `algorithms()` (dynamics.checks.ALGORITHMS, without importing SB3)."""
 
 
 # ---- reading files -----------------------------------------------------------------------
@@ -257,9 +258,7 @@ def check_entries(entries: dict, where: str) -> dict:
 # ---- the layers ----------------------------------------------------------------------------
 def check_algo_name(algo: str) -> str:
     if algo not in ALGOS:
-        close = difflib.get_close_matches(str(algo), ALGOS, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
-        raise UserError(f"Unknown algorithm {algo!r}.{hint} Known: {', '.join(ALGOS)}.")
+        raise UserError(str(unknown("algorithm", algo, ALGOS)))
     return algo
 
 

@@ -122,11 +122,14 @@ def plot_response(env_id: str, path: str, seed: int = 0, Q=None, R=None, **env_k
 
 def _floats(text: str) -> list[float]:
     try:
-        return [float(v) for v in text.split(",")]
+        values = [float(v) for v in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated numbers, got {text!r}"
         ) from None
+    if not all(np.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"weights must be positive finite numbers, got {text!r}")
+    return values
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -158,32 +161,54 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Every argument checked before work starts; a problem ends in one line (exit 2), an
+    uncontrollable linearisation in one line (exit 1), never a traceback."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not (np.isfinite(args.scale) and args.scale >= 0):
         parser.error(f"--scale must be a non-negative number, got {args.scale}")
     try:
-        env_id = check_env_id(args.env_id, lagrange=True)
-    except UserError as e:
-        fail(parser, e)
+        if args.plot:
+            check_output_file(args.plot, "--plot")
+        return run(args)
+    except UncontrollableError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except (ValueError, OSError) as e:  # UserError, Unsupported, a declaration's problem
+        fail(parser, " ".join(str(e).split()))
+
+
+def check_output_file(path: str, option: str) -> None:
+    """UserError unless `path` can be written: its folder exists and is writable, and it is
+    not a folder itself (checked before the work, which would otherwise be lost)."""
+    import os
+    from pathlib import Path
+
+    p = Path(path)
+    if p.is_dir():
+        raise UserError(f"{option} {p} is a folder; give a file name such as response.png.")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise UserError(f"{option} {p}: the folder {folder} does not exist.")
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"{option} {p}: the folder {folder} is not writable.")
+
+
+def run(args) -> int:
+    env_id = check_env_id(args.env_id, lagrange=True)
     env = gym.make(env_id)
     env.reset(seed=args.seed)
     try:
         policy = LQRPolicy(env, Q=args.q, R=args.r)
         print(f"{env_id}: LQR at the operating point of the goal drawn with seed {args.seed}")
         print(describe(policy.design()))
-    except UncontrollableError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
-    except ValueError as e:
-        fail(parser, e)
     finally:
         env.close()
     base_region = expected_region(gym.make(env_id))
     region = {k: args.scale * v for k, v in base_region.items()}
     print(f"\nstarts: operating point + uniform perturbation within +- {region}")
     lqr_policy = lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)  # noqa: E731
-    for name, pol in (("LQR", lqr_policy), ("zero torque", ZeroPolicy)):
+    for name, pol in (("LQR", lqr_policy), ("zero input", ZeroPolicy)):
         r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale)
         print(
             f"{name:>11}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}), "

@@ -60,10 +60,26 @@ class RandomPolicy(Policy):
 
 
 class ZeroPolicy(Policy):
-    """No torque: the unforced motion."""
+    """Zero input: the unforced motion. Given a Lagrange env, the action that applies a
+    physical input of 0 (not the middle of the range: for a one-sided input such as a
+    rotor's thrust in [0, max], action -1), or the limit nearest 0 where an input's limits
+    exclude it (then `description` says so); given only an action space, action 0."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.zero = np.zeros(self.action_space.shape)
+        self.description = "zero input"
+        try:
+            plant = lagrange_env(env).plant
+        except (UserError, AttributeError):
+            return  # a bare action space: its middle
+        exact = -plant.input_mid / plant.input_half
+        self.zero = np.clip(exact, -1.0, 1.0).reshape(self.action_space.shape)
+        if not np.allclose(self.zero, exact.reshape(self.zero.shape)):
+            self.description = "zero input where the limits allow it, else the nearest limit"
 
     def act(self, obs):
-        return np.zeros((len(obs),) + self.action_space.shape)
+        return np.broadcast_to(self.zero, (len(obs),) + self.action_space.shape).copy()
 
 
 def _single_action_space(env) -> spaces.Box:

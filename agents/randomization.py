@@ -6,7 +6,10 @@ repeatable), resolved against the env's nominal parameters into the env option
 `randomize={name: (low, high)}` (absolute values drawn uniformly at every reset of each
 copy, `envs.plant`):
 
-- `inertial: F`: every inertial parameter over [1 - F, 1 + F] x its nominal value;
+- `inertial: F`: every inertial parameter over [1 - F, 1 + F] x its nominal value, each
+  body the model declares (`ModelSpec.bodies`) as a whole: its moments and products of
+  inertia scaled by one draw (drawn apart, a thin disk's or a bicycle frame's would often
+  be no body's);
 - `NAME: F` (a number): that parameter over [1 - F, 1 + F] x its nominal value;
 - `NAME: [LOW, HIGH]` (`NAME=LOW:HIGH` on the command line): absolute values, in the
   model's units (`python -m dynamics show MODEL` lists them).
@@ -99,10 +102,13 @@ def parse_option(items: list[str] | None) -> dict | None:
         raise UserError(f"--randomize: {exc}.") from None
 
 
-def ranges(system, setting: dict | None) -> dict[str, tuple[float, float]] | None:
-    """The env option `randomize=` ({name: (low, high)}, absolute) for `setting` on
-    `system` (its nominal parameters); None for no setting. UserError naming an unknown
-    parameter or a model without inertial parameters."""
+def ranges(system, setting: dict | None) -> dict | None:
+    """The env option `randomize=` for `setting` on `system` (its nominal parameters): {name:
+    (low, high)}, absolute, except the moments of each body the model declares
+    (`ModelSpec.bodies`), which `inertial` scales as a whole: the first one drawn as a scale
+    over [1 - F, 1 + F] and the others `Same` as it, so that every copy's body is one some
+    mass distribution has. None for no setting. UserError naming an unknown parameter or a
+    model without inertial parameters."""
     if setting is None:
         return None
     try:
@@ -116,6 +122,7 @@ def ranges(system, setting: dict | None) -> dict[str, tuple[float, float]] | Non
         if not names:
             raise UserError(f"randomize: {system.name} has no inertial parameters (kg, kg*m^2).")
         out.update({name: scaled(nominal[name], setting[GROUP]) for name in names})
+        out.update(_whole_bodies(system, names, setting))
     for key, value in setting.items():
         if key == GROUP:
             continue
@@ -126,6 +133,27 @@ def ranges(system, setting: dict | None) -> dict[str, tuple[float, float]] | Non
             )
         out[key] = tuple(value) if isinstance(value, list) else scaled(nominal[key], value)
     return out
+
+
+def _whole_bodies(system, names: list[str], setting: dict) -> dict:
+    """The entries that draw each declared body's inertial moments (of `names`, not named in
+    `setting` on their own) with one scale, in the declared dict form (YAML-safe)."""
+    out = {}
+    f = setting[GROUP]
+    for reads in system.bodies.values():
+        members = [k for k in names if k in reads and k not in setting]
+        if len(members) < 2:
+            continue
+        first = members[0]
+        out[first] = {"dist": "uniform", "low": 1 - f, "high": 1 + f, "apply": "scale"}
+        out.update({k: {"dist": "same", "parameter": first} for k in members[1:]})
+    return out
+
+
+def recorded(randomize: dict) -> dict:
+    """The env option `randomize=` as the run's config.yml keeps it: (low, high) as lists,
+    the declared dict forms as they are."""
+    return {k: dict(v) if isinstance(v, dict) else list(v) for k, v in randomize.items()}
 
 
 def scaled(nominal: float, fraction: float) -> tuple[float, float]:

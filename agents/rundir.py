@@ -144,6 +144,29 @@ def prepare_run_dir(
     return None
 
 
+def check_resume_randomize(run_dir: Path, setting: dict | None) -> None:
+    """UserError when `setting` (the hyperparameter `randomize`) differs from the one the run
+    in `run_dir` recorded in its config.yml: a resumed run trains on what it began with,
+    and its record says so."""
+    from .randomization import check_setting, describe
+    from .values import Bad
+
+    config = read_config(Path(run_dir))
+    if not config:
+        return
+    recorded = (config.get("hyperparams") or {}).get("randomize")
+    try:
+        given, before = check_setting(setting), check_setting(recorded)
+    except Bad as exc:
+        raise UserError(f"randomize: {exc}.") from None
+    if given != before:
+        raise UserError(
+            f"{run_dir} was trained with {describe(recorded)}, not {describe(given)}; "
+            "--resume continues a run with its own settings (leave --randomize out), or "
+            "start another run (--run-dir) with the new ones."
+        )
+
+
 def _check_same_run(run_dir: Path, env_id: str, algo: str) -> None:
     earlier = read_config(run_dir)
     if earlier and (earlier["env_id"], earlier["algo"]) != (env_id, algo):

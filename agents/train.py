@@ -52,6 +52,7 @@ from .common import (
 from .curves import CurveLogger
 from .hparams import ALGOS, check_entries, load_hyperparams
 from .rundir import (
+    check_resume_randomize,
     default_run_dir,
     exclusive,
     prepare_run_dir,
@@ -133,6 +134,8 @@ def train(
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
     if randomize is None and resume:
         randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
+    elif resume:  # another setting would rewrite the record of what the run trained on
+        check_resume_randomize(run_dir, randomize)
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing
@@ -150,9 +153,7 @@ def train(
             "hyperparams": hp,
         }
         if env_options:  # what the setting meant for this env: absolute ranges, model units
-            config["env_options"] = {
-                "randomize": {k: list(v) for k, v in env_options["randomize"].items()}
-            }
+            config["env_options"] = {"randomize": randomization.recorded(env_options["randomize"])}
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq or max(total // 10, 2000),

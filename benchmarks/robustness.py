@@ -11,7 +11,10 @@ perturbations): one quantity at a time is moved away from the nominal plant over
 and every agent runs the same seeded episodes at every point:
 
 - each inertial parameter (kg, kg*m^2: agents.randomization) over [0.75, 1.25] x nominal,
-  and all of them together (`inertial`: every mass and inertia times the same factor);
+  each body the model declares as a whole (`body NAME`: its moments times one factor), and
+  all of them together (`inertial`: every mass and inertia times the same factor); a point
+  that gives a body an inertia no mass distribution has (or breaks a model condition) is
+  skipped and listed with the reason, the other points of its grid kept;
 - obs_noise: Gaussian noise on every observation feature, std 0 .. 0.1 in its units;
 - action_noise: Gaussian noise on the applied input, std 0 .. 0.4 x the input's limit;
 - motor_k: first-order motor response u += k (u_cmd - u), k in [0.1, 2];
@@ -30,6 +33,7 @@ Trained models are read from `--models DIR` (DIR/ENV/nominal and DIR/ENV/randomi
 directories of agents.train) and trained there with the task's budget when missing
 (`--no-train` skips them instead).
 
+Every argument is checked before any work (one line and exit status 2 otherwise).
 Writes results.json and results.md to --out (success with Wilson 95 % intervals per env,
 agent, quantity and grid point; where LQR drops below 50 %) and one figure per env to
 --figures (default: --out), each file atomically. Prints the machine's load with the table.
@@ -37,9 +41,7 @@ agent, quantity and grid point; where LQR drops below 50 %) and one figure per e
 
 from __future__ import annotations
 
-import argparse
 import datetime
-import json
 import os
 import platform
 import sys
@@ -53,13 +55,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
-import envs  # noqa: E402
-from agents.common import env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
+from agents.common import UserError, env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.report import wilson_interval  # noqa: E402
-from benchmarks.robustness_report import AGENTS, Quantity, merge, render  # noqa: E402
+from benchmarks.robustness_args import (  # noqa: E402
+    PERTURBATIONS,
+    build_parser,
+    check_args,
+    check_models,
+    read_results,
+)
+from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 
-PERTURBATIONS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 RANDOMIZED = {"inertial": 0.25}
 """How `ppo-randomized` is trained (agents.randomization)."""
 ALL_INERTIAL = "inertial"
@@ -85,12 +92,15 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) ->
     env = lagrange_env(gym.make(env_id))
     system, plant = env.system, env.plant
     inertial = inertial_parameters(system)
-    names = list(inertial) + [ALL_INERTIAL] + list(PERTURBATIONS)
+    bodies = {
+        f"body {b}": [k for k in reads if k in inertial] for b, reads in system.bodies.items()
+    }
+    params = inertial + list(bodies) + [ALL_INERTIAL]
+    names = params + list(PERTURBATIONS)
     if wanted:
         chosen = set()
         for w in wanted:
-            group = {"inertial": inertial + [ALL_INERTIAL], "perturb": PERTURBATIONS}.get(w, [w])
-            chosen |= set(group)
+            chosen |= set({"inertial": params, "perturb": PERTURBATIONS}.get(w, [w]))
         names = [n for n in names if n in chosen]
     scales = np.linspace(0.75, 1.25, grid) if scales is None else sorted(scales)
     fractions = np.linspace(0.0, 1.0, grid)
@@ -99,15 +109,10 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) ->
     limit = plant.max_input
     out = []
     for name in names:
-        if name in inertial:
-            v = system.parameters[name]
-            pts = tuple((float(s), {name: float(s * v)}) for s in scales)
-            out.append(Quantity(name, "params", f"{name} / nominal", 1.0, pts))
-        elif name == ALL_INERTIAL:  # every mass and inertia scaled together
-            pts = tuple(
-                (float(s), {k: float(s * system.parameters[k]) for k in inertial}) for s in scales
-            )
-            out.append(Quantity(name, "params", "every mass and inertia / nominal", 1.0, pts))
+        if name in inertial or name in bodies or name == ALL_INERTIAL:
+            moved = inertial if name == ALL_INERTIAL else bodies.get(name, [name])
+            label = {ALL_INERTIAL: "every mass and inertia"}.get(name, name)
+            out.append(_scaled(system, name, f"{label} / nominal", moved, scales))
         elif name == "obs_noise":
             pts = tuple((float(f * 0.1), {name: float(f * 0.1)}) for f in fractions)
             out.append(Quantity(name, "perturb", "observation noise std", 0.0, pts))
@@ -128,6 +133,23 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) ->
         else:
             raise SystemExit(f"unknown quantity {name!r}; known for {env_id}: {names}")
     return out
+
+
+def _scaled(system, name: str, label: str, moved: list[str], scales) -> Quantity:
+    """The parameters `moved` times each scale together; the points where that is no
+    possible system (a body's inertia no mass distribution has, a broken condition) are
+    left out of the grid and kept, with the reason, in `impossible`."""
+    pts, impossible = [], []
+    for s in scales:
+        values = {k: float(s * system.parameters[k]) for k in moved}
+        try:
+            system.check_parameter_rows({k: [v] for k, v in values.items()})
+        except ValueError as exc:
+            why = str(exc).split(" ({")[0].removeprefix(f"{system.name}: parameters ")
+            impossible.append((float(s), why))
+            continue
+        pts.append((float(s), values))
+    return Quantity(name, "params", label, 1.0, tuple(pts), tuple(impossible))
 
 
 # ---- agents ------------------------------------------------------------------------------
@@ -260,6 +282,11 @@ def _vec(env_id: str, n: int, **options):
 def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
     qs = quantities(env_id, args.grid, args.quantities, args.scales)
     skipped = []
+    for q in qs:
+        for x, why in q.impossible:
+            skipped.append(f"{q.name} x {x:g} skipped, no possible plant: parameters {why}")
+            log(f"  {skipped[-1]}")
+    qs = [q for q in qs if q.points]
     if any(q.kind == "perturb" for q in qs):
         why = perturb_available(env_id)
         if why is not None:
@@ -289,63 +316,35 @@ def bench_env(env_id, args, log) -> tuple[dict, list[Quantity]]:
     result = dict(
         agents=agents, skipped=skipped, rows=rows,
         quantities=[dict(name=q.name, kind=q.kind, label=q.label, nominal=q.nominal,
-                         xs=[x for x, _ in q.points]) for q in qs],
+                         xs=[x for x, _ in q.points],
+                         impossible=[x for x, _ in q.impossible]) for q in qs],
     )  # fmt: skip
     return result, qs
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="python benchmarks/robustness.py",
-        description=__doc__.split("\n\n")[2].replace("\n", " "),
-    )
-    p.add_argument("--envs", type=_names, help="comma-separated env ids (default: every one)")
-    p.add_argument("--agents", type=_names, default=list(AGENTS), help=f"of {','.join(AGENTS)}")
-    p.add_argument("--quantities", type=_names,
-                   help="parameter names, obs_noise, action_noise, motor_k, delay, push; "
-                   "'inertial' or 'perturb' for each group (default: all)")  # fmt: skip
-    p.add_argument("--episodes", type=int, default=100, help="seeded episodes per grid point")
-    p.add_argument("--grid", type=int, default=5, help="points of the parameter/noise grids")
-    p.add_argument("--scales", type=_numbers,
-                   help="the parameters' grid as scales of the nominal, e.g. 0.25,0.5,1,2,4 "
-                   "(default: --grid points over [0.75, 1.25])")  # fmt: skip
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--models", default="runs/robustness/models",
-                   help="trained PPO: DIR/ENV/nominal and DIR/ENV/randomized")  # fmt: skip
-    p.add_argument("--no-train", action="store_true", help="skip PPO models not in --models")
-    p.add_argument("--out", default="runs/robustness", help="results.json and results.md")
-    p.add_argument("--figures", help="directory of the figures (default: --out)")
-    p.add_argument("--render", nargs="+", metavar="JSON",
-                   help="run nothing: merge these results.json files (later ones win where "
-                   "they overlap) and write the table and figures from them")  # fmt: skip
-    return p
-
-
-def _numbers(text: str) -> list[float]:
-    values = [float(t) for t in _names(text)]
-    if not values or min(values) <= 0:
-        raise argparse.ArgumentTypeError("positive scales, comma-separated")
-    return values
-
-
-def _names(text: str) -> list[str]:
-    return [t.strip() for t in text.split(",") if t.strip()]
-
-
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    unknown = sorted(set(args.agents) - set(AGENTS))
-    if unknown or args.episodes < 1 or args.grid < 2:
-        raise SystemExit(f"agents of {AGENTS}, --episodes >= 1, --grid >= 2 (got {unknown})")
-    env_ids = args.envs or list(envs.ENV_IDS)
+    """Run the benchmark; every argument is checked before work starts, and a problem ends
+    the program with one line naming it (exit status 2)."""
+    parser = build_parser(__doc__)
+    args = parser.parse_args(argv)
+    try:
+        return run(args, argv)
+    except UserError as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
+
+
+def run(args, argv) -> int:
+    env_ids = check_args(args)
     set_torch_threads(1)
     out, figures = Path(args.out), Path(args.figures or args.out)
     log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
     load_start = ", ".join(f"{v:.1f}" for v in os.getloadavg())
     start = time.perf_counter()
     if args.render:
-        render(merge([json.loads(Path(p).read_text()) for p in args.render]), out, figures)
+        render(merge(read_results(args.render)), out, figures)
         return 0
+    for env_id in env_ids:  # a model trained on another env refused before any episode
+        check_models(env_id, Path(args.models), args.agents)
     results = {"envs": {}}
     for env_id in env_ids:
         log(f"{env_id}")

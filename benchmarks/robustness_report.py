@@ -37,6 +37,7 @@ class Quantity:
     label: str
     nominal: float
     points: tuple[tuple[float, dict], ...]
+    impossible: tuple[tuple[float, str], ...] = ()  # (x, why): grid points no plant can have
 
 
 def drop_points(rows: list[dict], q: Quantity, agent: str = "lqr") -> dict:

@@ -17,9 +17,13 @@ discarded, not opened for reading).
 What is in the cache runs as code: the modules when loaded, numba's files when numba
 unpickles them. So the directory must be writable by its user alone. It is
 ``$LAGRANGE_GYM_CACHE`` if set, else ``$XDG_CACHE_HOME/lagrange-gym`` (or
-``~/.cache/lagrange-gym``), created private to its user (0o700). One that another user owns
-or that group or others may write is not used: models are then built in a private temporary
-directory removed at exit, with one warning saying why (as when it cannot be written).
+``~/.cache/lagrange-gym``), created private to its user (0o700), and so is numba's
+``__pycache__`` in it (made here before numba would make it with the process umask). One that
+another user owns, or that another user may write (others' write permission, or the group's
+where the group has a member besides this user: under umask 002 with a user's private group,
+group-writable folders are still the user's alone) is not used: models are then built in a
+private temporary directory removed at exit, with one warning saying why (as when it cannot
+be written).
 """
 
 from __future__ import annotations
@@ -72,6 +76,11 @@ def cache_dir() -> Path:
             f"Cannot create the model cache {path}; set {ENV_VAR} to a writable directory."
         ) from exc
     for folder in (path, path / "__pycache__"):
+        if folder.name == "__pycache__":  # numba would make it with the umask (0o775 for 002)
+            try:
+                folder.mkdir(mode=0o700, exist_ok=True)
+            except OSError:
+                pass  # a read-only cache: checked below all the same
         problem = _unsafe(folder)
         if problem:
             raise UnsafeCacheError(
@@ -87,16 +96,49 @@ class UnsafeCacheError(OSError):
 
 def _unsafe(folder: Path) -> str | None:
     """Why `folder` (if it exists; a link is followed) cannot be trusted: another owner, or
-    write permission for group or others."""
+    write permission for another user (others, or a group with a member besides this user)."""
     try:
         st = folder.stat()
     except FileNotFoundError:
         return None
     if st.st_uid != os.geteuid():
         return f"is owned by uid {st.st_uid}, not by this user (uid {os.geteuid()})"
-    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+    return _writable_by_others(folder, st)
+
+
+def _writable_by_others(path: Path, st=None) -> str | None:
+    """Why another user may write `path` (others' write permission, or the group's where
+    the group has a member besides this user), or None."""
+    st = st or path.stat()
+    mode = stat.S_IMODE(st.st_mode)
+    if mode & stat.S_IWOTH:
+        return f"is writable by others (mode {mode:04o})"
+    if mode & stat.S_IWGRP:
+        others = group_members_besides_me(st.st_gid)
+        if others:
+            return (
+                f"is writable by others: by its group (mode {mode:04o}), whose members include "
+                f"{', '.join(others[:3])}"
+            )
     return None
+
+
+def group_members_besides_me(gid: int) -> list[str]:
+    """The users other than this one who belong to group `gid` (its listed members and the
+    users whose primary group it is); ['unknown users'] where that cannot be told."""
+    try:
+        import grp
+        import pwd
+    except ImportError:  # not POSIX
+        return ["unknown users"]
+    me = os.geteuid()
+    try:
+        group = grp.getgrgid(gid)
+        names = set(group.gr_mem) | {u.pw_name for u in pwd.getpwall() if u.pw_gid == gid}
+        mine = {u.pw_name for u in pwd.getpwall() if u.pw_uid == me}
+    except (KeyError, OSError):
+        return ["unknown users"]
+    return sorted(names - mine)
 
 
 def _private_dir(reason: Exception) -> Path:
@@ -201,6 +243,9 @@ def _load_file(path: Path, key: str, expected: str | None = None) -> ModuleType 
     """The verified module at `path`, or None (a damaged file is discarded). With
     `expected`, the file must hold exactly that text."""
     try:
+        if _writable_by_others(path):  # a file another user may have written: not run
+            _discard(path)
+            return None
         text = read_bytes(path).decode("utf-8")
     except FileNotFoundError:
         return None
@@ -266,6 +311,97 @@ def load_or_build(name: str, key: str, build: Callable[[], str]) -> ModuleType:
         if module is None:
             module = load(name, key, build())
     return module
+
+
+def foreign_code(fn) -> str | None:
+    """sha256 of the code of every Python function `fn` reaches (through globals, closures,
+    defaults, `module.attr`) that is defined in another file than `fn`, or None when it
+    reaches none. Library functions (numpy, math, numba) are not followed."""
+    import types
+
+    fn = _function(fn)
+    if fn is None:
+        return None
+    home, seen, todo = fn.__code__.co_filename, set(), [fn]
+    h, foreign = hashlib.sha256(), False
+    while todo:
+        f = _function(todo.pop())
+        if f is None or id(f) in seen:
+            continue
+        seen.add(id(f))
+        if f.__code__.co_filename != home:
+            foreign = True
+            h.update(f"{f.__code__.co_filename}:{f.__qualname__}".encode())
+            _hash_code(h, f.__code__)
+        names = _code_names(f.__code__)
+        reached = [f.__globals__.get(n) for n in names]
+        reached += [c.cell_contents for c in f.__closure__ or () if _assigned(c)]
+        reached += list(f.__defaults__ or ())
+        for obj in list(reached):
+            if isinstance(obj, types.ModuleType) and not _library_module(obj):
+                reached += [getattr(obj, n, None) for n in names]
+        todo += [o for o in reached if _function(o) is not None]
+    return h.hexdigest() if foreign else None
+
+
+def keep_numba_cache_true(dispatcher, fn) -> None:
+    """numba keys a function's cached machine code on its own source file only, though that
+    code includes every jitted helper it calls: after an edit of a helper in another file,
+    the cache would serve the old helper. Here the code of those helpers (`foreign_code`) is
+    kept beside the model cache, and numba's cache of `dispatcher` (compiled from `fn`,
+    before its first call) is emptied when it changed, so numba compiles afresh."""
+    digest = foreign_code(fn)
+    if digest is None:
+        return
+    code = fn.__code__
+    name = hashlib.sha256(f"{code.co_filename}:{fn.__qualname__}:{code.co_firstlineno}".encode())
+    try:
+        stamp = cache_dir() / "numba-stamps" / name.hexdigest()[:32]
+        if stamp.is_file() and read_bytes(stamp).decode() == digest:
+            return
+        dispatcher._cache.flush()  # numba's FunctionCache: drop every entry of the index
+        stamp.parent.mkdir(mode=0o700, exist_ok=True)
+        write_atomic(stamp, digest)
+    except (OSError, AttributeError, UnicodeDecodeError):
+        return  # no cache to keep (a read-only one): numba's own rules
+
+
+def _hash_code(h, code) -> None:
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if hasattr(const, "co_code"):
+            _hash_code(h, const)
+        else:
+            h.update(repr(const).encode())
+
+
+def _function(obj):
+    import types
+
+    obj = getattr(obj, "py_func", obj)
+    return obj if isinstance(obj, types.FunctionType) and not _library_module(obj) else None
+
+
+def _library_module(obj) -> bool:
+    name = getattr(obj, "__name__", "") if isinstance(obj, type(sys)) else obj.__module__ or ""
+    return name.partition(".")[0] in ("numpy", "numba", "math", "cmath", "builtins")
+
+
+def _code_names(code) -> set[str]:
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if hasattr(const, "co_names"):
+            names |= _code_names(const)
+    return names
+
+
+def _assigned(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018 (an empty cell raises)
+    except ValueError:
+        return False
+    return True
 
 
 class _lock:

@@ -18,6 +18,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from .derive import Derived
 from .program import Program
+from .spec import inertia_matrix
 
 KERNELS = Path(__file__).with_name("kernels.py")
 
@@ -184,6 +185,32 @@ def _function(
     return "\n".join(lines)
 
 
+def _bodies(spec, convert, unpack_p) -> str:
+    """BODIES ((name, parameters read), ...) and `inertias(p)`: each body's inertia tensor
+    as its 6 entries (xx, xy, xz, yy, yz, zz), checked by `dynamics.physical`."""
+    printer = _Printer({"fully_qualified_modules": True})
+    names, entries = [], []
+    for name, inertia in spec.bodies.items():
+        m = inertia_matrix(inertia)
+        reads = sorted(str(s) for s in m.free_symbols)
+        names.append((name, tuple(reads)))
+        six = (m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2], m[2, 2])
+        entries.append("(" + ", ".join(printer.doprint(convert(sp.sympify(e))) for e in six) + ")")
+    return "\n".join(
+        [
+            "",
+            "",
+            f"BODIES = {tuple(names)!r}",
+            "",
+            "",
+            "def inertias(p):",
+            '    """Each body\'s inertia tensor entries (xx, xy, xz, yy, yz, zz)."""',
+            *["    " + h for h in unpack_p],
+            f"    return ({''.join(e + ', ' for e in entries)})",
+        ]
+    )
+
+
 def generate(d: Derived, key: str) -> str:
     """The source text of the compiled module of `d`."""
     spec = d.spec
@@ -248,6 +275,7 @@ def generate(d: Derived, key: str) -> str:
         f"DEFAULTS = {tuple(float(p.default) for p in spec.parameters.values())!r}",
         f"UNITS = {tuple(p.unit for p in spec.parameters.values())!r}",
         f"POSITIVE = {tuple(bool(p.positive) for p in spec.parameters.values())!r}",
+        f"NONNEGATIVE = {tuple(bool(p.nonnegative) for p in spec.parameters.values())!r}",
         f"OUTPUTS = {tuple(code.outputs)!r}",
         f"N_Q = {n}",
         f"N_U = {nu}",
@@ -315,6 +343,7 @@ def generate(d: Derived, key: str) -> str:
             ]
         )
     )
+    parts.append(_bodies(spec, convert, unpack_p))
     parts.append(_lanes(n, nu, prog, len(spec.parameters)))
     parts.append(_points(d))
     kernels = KERNELS.read_text().split("# --- template starts here ---", 1)[1]

@@ -43,13 +43,13 @@ Parameters the data cannot determine are held at their given values and listed i
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import savgol_filter
 
 from . import estimate, regression
+from .checks import did_you_mean
 from .regression import POLYORDER
 from .regressor import (
     COULOMB_WIDTH,
@@ -185,8 +185,7 @@ def _unknown(model, unknown) -> list[str]:
         unknown = [unknown]
     for name in unknown:
         if name not in names:
-            close = difflib.get_close_matches(str(name), names, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(str(name), names)
             raise ValueError(
                 f"unknown: {model.name} has no parameter {name!r}.{hint} Known: {', '.join(names)}."
             )
@@ -200,8 +199,7 @@ def _given(model, given) -> dict[str, float]:
     for name in given:
         known = list(catalogue(model).defaults)
         if name not in known:
-            close = difflib.get_close_matches(str(name), known, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(str(name), known)
             raise ValueError(f"given: {model.name} has no parameter {name!r}.{hint}")
     return {k: float(v) for k, v in given.items()}
 

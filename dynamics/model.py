@@ -8,7 +8,7 @@ without importing sympy or building the model at all.
 from __future__ import annotations
 
 import ast
-import difflib
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -19,6 +19,7 @@ from importlib import metadata
 from pathlib import Path
 
 from . import cache as _cache
+from . import checks
 from .system import System
 
 _REGISTRY: dict[str, str] = {
@@ -112,15 +113,46 @@ def get_model(name: str, **options) -> Model:
             f"Known: {', '.join(list_models())}."
         )
     if name not in _REGISTRY:
-        close = difflib.get_close_matches(name, list(_REGISTRY), n=3)
-        hint = f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
-        raise ValueError(f"Unknown model {name!r}.{hint} Known: {', '.join(list_models())}.")
+        raise checks.unknown("model", name, list_models(), n=3)
     return Model(_REGISTRY[name], name=name, options=options)
 
 
 def _import_factory(target: str) -> Callable:
     module, func = target.split(":")
-    return getattr(importlib.import_module(module), func)
+    obj = importlib.import_module(module)
+    for part in func.split("."):  # a qualified name: Class.method
+        obj = getattr(obj, part)
+    return obj
+
+
+def factory_target(factory) -> str | None:
+    """'module:qualname' of a factory that importing gives back (so that a warm cache is
+    keyed by its source file and never rebuilds the spec), else None: a lambda, a local
+    function, a functools.partial, a callable object, a function of __main__ (those are
+    keyed by the spec they build)."""
+    if isinstance(factory, staticmethod):
+        factory = factory.__func__
+    module = getattr(factory, "__module__", None)
+    qualname = getattr(factory, "__qualname__", None)
+    if not (isinstance(module, str) and isinstance(qualname, str)):
+        return None
+    if "<" in qualname or module == "__main__":
+        return None
+    target = f"{module}:{qualname}"
+    try:
+        found = _import_factory(target)
+    except Exception:  # not importable as named
+        return None
+    found = found.__func__ if isinstance(found, staticmethod) else found
+    return target if found is factory else None
+
+
+def _label(factory) -> str:
+    """A factory's name for messages: a function, a functools.partial, a callable object."""
+    if isinstance(factory, functools.partial):
+        return f"functools.partial({_label(factory.func)}, ...)"
+    name = getattr(factory, "__qualname__", None) or type(factory).__qualname__ + " object"
+    return repr(name)
 
 
 class Model:
@@ -135,7 +167,7 @@ class Model:
             self._factory = spec_or_factory
             self._spec = None
             self._registered = True
-        elif callable(spec_or_factory):
+        elif callable(spec_or_factory) or isinstance(spec_or_factory, staticmethod):
             self._factory = spec_or_factory
             self._spec = None
             self._registered = False
@@ -155,7 +187,18 @@ class Model:
             factory = self._factory
             if isinstance(factory, str):
                 factory = _import_factory(factory)
-            self._spec = factory(**self._options)
+            if isinstance(factory, staticmethod):
+                factory = factory.__func__
+            from .spec import ModelSpec
+
+            spec = factory(**self._options)
+            if not isinstance(spec, ModelSpec):
+                raise TypeError(
+                    f"The model factory {_label(factory)} returned {type(spec).__name__}, not "
+                    "a dynamics.ModelSpec (a factory is called with no arguments and returns "
+                    "the spec)."
+                )
+            self._spec = spec
         return self._spec
 
     @property

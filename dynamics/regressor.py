@@ -30,7 +30,6 @@ like any other (they enter linearly).
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import hashlib
 from pathlib import Path
 from types import ModuleType
@@ -41,6 +40,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from . import cache
 from .calculus import compact, diff
+from .checks import did_you_mean
 from .model import Model, get_model
 from .program import Program
 from .spec import ModelSpec, Param, t
@@ -117,8 +117,7 @@ def friction_setting(model: Model, friction) -> dict[str, str]:
     out = {}
     for name, kind in friction.items():
         if name not in coords:
-            close = difflib.get_close_matches(str(name), coords, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(str(name), coords)
             raise ValueError(
                 f"friction: {model.name} has no coordinate {name!r}.{hint} "
                 f"Known: {', '.join(coords)}."

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 import sympy as sp
 import sympy.physics.mechanics as me
 
@@ -22,12 +23,25 @@ t = me.dynamicsymbols._t
 
 @dataclass(frozen=True)
 class Param:
-    """A model parameter: SI default, unit, meaning; `positive` ones must be > 0."""
+    """A model parameter: SI default, unit, meaning; `positive` ones must be > 0,
+    `nonnegative` ones (with positive=False) >= 0 (a friction coefficient, a damping)."""
 
     default: float
     unit: str
     doc: str = ""
     positive: bool = True
+    nonnegative: bool = field(default=False, repr=False)
+
+    def __post_init__(self):
+        d = self.default
+        real = isinstance(d, (int, float, np.integer, np.floating))
+        if isinstance(d, (bool, np.bool_)) or not real:
+            raise TypeError(f"Param.default must be a real number, got {d!r}.")
+        if not np.isfinite(d):
+            raise ValueError(f"Param.default must be finite, got {d!r}.")
+        for flag in ("positive", "nonnegative"):
+            if not isinstance(getattr(self, flag), (bool, np.bool_)):
+                raise TypeError(f"Param.{flag} must be True or False, got {getattr(self, flag)!r}.")
 
 
 @dataclass(frozen=True)
@@ -47,6 +61,12 @@ class ModelSpec:
     outputs: further named expressions of q, qdot, qddot, t, inputs (reported by the system).
     conditions: {statement: expression in the parameters that must be > 0}, checked when
         the model is compiled with numbers (e.g. {"l > R + |h|": l - R - Abs(h)}).
+    bodies: {name: inertia}, the rigid bodies whose inertia the parameters give: the three
+        principal moments (a tuple, e.g. (I, I, J) for a disk) or the symmetric 3x3 tensor
+        (a Matrix or nested tuples, entries expressions in the parameters, 0 allowed) about
+        any point. Every set of parameter values is then checked to give each body an
+        inertia some mass distribution has (positive definite, each principal moment at most
+        the sum of the other two), and randomisation draws such a body as a whole.
     points: {name: velocity}, points an external force may act on (the envs' pushes): the
         velocity of each as a column Matrix of 2 or 3 components in any basis (a force is
         given by its components in the same basis); a force f there has the generalised
@@ -66,6 +86,7 @@ class ModelSpec:
     conditions: Mapping = field(default_factory=dict)
     description: str = ""
     points: Mapping = field(default_factory=dict)
+    bodies: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         coords = set(self.coordinates) | set(self.prescribed)
@@ -106,6 +127,45 @@ class ModelSpec:
                     f"Matrix of 2 or 3 components, got {v!r:.80}."
                 )
 
+        self._check_symbols()
+        self._check_bodies()
+
+    def _check_symbols(self) -> None:
+        """Every symbol in T, V, Q, the constraints, outputs, conditions and points is a
+        declared parameter or input (or the time t): an undeclared one would surface only
+        in the compiler's words."""
+        declared = set(self.parameters) | set(self.inputs) | {t}
+        for label, value in self._expressions():
+            extra = sorted(str(s) for s in sp.sympify(value).free_symbols - declared)
+            if extra:
+                raise ValueError(
+                    f"{self.name}: {label} uses {', '.join(extra)}, declared neither as a "
+                    f"parameter nor as an input (add it to `parameters` with a Param)."
+                )
+        for k, p in self.parameters.items():
+            if not isinstance(p, Param):
+                raise TypeError(
+                    f"{self.name}: parameters[{k}] must be a Param(default, unit), got {p!r:.80}."
+                )
+
+    def _check_bodies(self) -> None:
+        params = set(self.parameters)
+        for name, inertia in self.bodies.items():
+            try:
+                matrix = inertia_matrix(inertia)
+            except (TypeError, ValueError, sp.SympifyError):
+                matrix = None
+            if matrix is None or matrix != matrix.T:
+                raise ValueError(
+                    f"{self.name}: bodies[{name!r}] must be 3 principal moments or a symmetric "
+                    f"3x3 inertia tensor, got {inertia!r:.80}."
+                )
+            foreign = sorted(str(s) for s in matrix.free_symbols - params)
+            if foreign:
+                raise ValueError(
+                    f"{self.name}: bodies[{name!r}] uses {foreign}, which are not parameters."
+                )
+
     def _expressions(self):
         yield "kinetic", self.kinetic
         yield "potential", self.potential
@@ -133,7 +193,26 @@ class ModelSpec:
         ]
         if self.points:  # (a spec without points keeps its former fingerprint)
             parts.append(sp.srepr([(k, sp.srepr(v)) for k, v in self.points.items()]))
+        if self.bodies:  # (likewise for bodies and non-negative parameters)
+            bodies = [(k, sp.srepr(inertia_matrix(v))) for k, v in self.bodies.items()]
+            parts.append(sp.srepr(bodies))
+        nonnegative = sorted(str(k) for k, p in self.parameters.items() if p.nonnegative)
+        if nonnegative:
+            parts.append(f"nonnegative {nonnegative}")
         return "\n".join(parts)
+
+
+def inertia_matrix(inertia) -> sp.Matrix:
+    """A body's declared inertia (3 principal moments, or a 3x3 tensor) as a 3x3 Matrix."""
+    if isinstance(inertia, sp.MatrixBase):
+        m = sp.Matrix(inertia)
+    elif len(inertia) == 3 and all(not isinstance(v, (tuple, list)) for v in inertia):
+        m = sp.diag(*[sp.sympify(v) for v in inertia])
+    else:
+        m = sp.Matrix([[sp.sympify(v) for v in row] for row in inertia])
+    if m.shape != (3, 3):
+        raise ValueError(f"an inertia is 3x3, got shape {m.shape}")
+    return m
 
 
 def generalized_forces(

@@ -13,7 +13,6 @@ skip this, for the environments' hot path.
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 from pathlib import Path
@@ -22,25 +21,31 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from . import cache, checks
+from . import cache, checks, physical
 from .methods import METHODS
 
 
-def check_parameters(model_name: str, names, defaults, positive, given: dict) -> np.ndarray:
+def check_parameters(
+    model_name: str, names, defaults, positive, given: dict, nonnegative=()
+) -> np.ndarray:
     """Parameter vector from defaults and overrides, with errors that name the problem."""
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
         if key not in values:
-            close = difflib.get_close_matches(str(key), names, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
             raise ValueError(
-                f"Unknown parameter {key!r} for {model_name}.{hint} Known: {', '.join(names)}."
+                f"Unknown parameter {key!r} for {model_name}.{checks.did_you_mean(key, names)} "
+                f"Known: {', '.join(names)}."
             )
         values[key] = checks.parameter(model_name, key, value)
     for key, pos in zip(names, positive):
         if pos and not values[key] > 0:
             raise ValueError(
                 f"Parameter {key!r} of {model_name} must be positive, got {values[key]}."
+            )
+    for key, nonneg in zip(names, nonnegative):
+        if nonneg and not values[key] >= 0:
+            raise ValueError(
+                f"Parameter {key!r} of {model_name} must not be negative, got {values[key]}."
             )
     return np.array([values[k] for k in names], dtype=np.float64)
 
@@ -58,15 +63,8 @@ class System:
         self.n_q, self.n_u, self.n_c = module.N_Q, module.N_U, module.N_C
         self.state_size = 2 * self.n_q
         self._no_input = np.zeros(self.n_u)
-        self._p = check_parameters(
-            self.name, module.PARAMETERS, module.DEFAULTS, module.POSITIVE, params or {}
-        )
+        self._p = self._checked(params or {})
         self.parameters: dict[str, float] = dict(zip(module.PARAMETERS, self._p.tolist()))
-        for statement, value in zip(module.CONDITIONS, module.conditions(self._p)):
-            if not value > 0:
-                raise ValueError(
-                    f"{self.name}: parameters violate {statement} ({self.parameters})."
-                )
         self.units: dict[str, str] = dict(zip(module.PARAMETERS, module.UNITS))
         # whether the model declares each parameter positive (a mass, a length)
         self.positive: dict[str, bool] = dict(zip(module.PARAMETERS, map(bool, module.POSITIVE)))
@@ -97,7 +95,7 @@ class System:
 
     # ---- argument checking -------------------------------------------------------------
     def _state(self, x) -> np.ndarray:
-        x = checks.real_array(self.name, "state", x)
+        x = checks.real_array(x, "state", self.name)
         if x.ndim == 0 or x.shape[-1] != self.state_size:
             raise ValueError(
                 f"{self.name}: expected state of shape (..., {self.state_size}) "
@@ -108,7 +106,7 @@ class System:
     def _input(self, u) -> np.ndarray:
         if u is None:
             return self._no_input
-        u = checks.real_array(self.name, "input", u)
+        u = checks.real_array(u, "input", self.name)
         if u.ndim == 0 or u.shape[-1] != self.n_u:
             raise ValueError(
                 f"{self.name}: expected input of shape (..., {self.n_u}) for "
@@ -121,7 +119,7 @@ class System:
         for every caller), check they are finite; return them and the leading shape."""
         x = self._state(x)
         u = self._input(u) if need_u else self._no_input
-        t = checks.real_array(self.name, "time", t)
+        t = checks.real_array(t, "time", self.name)
         lead = x.shape[:-1]
         if u.shape[:-1] != lead or t.ndim:
             lead = np.broadcast_shapes(lead, u.shape[:-1], t.shape)
@@ -261,14 +259,13 @@ class System:
         of the point's declared velocity, N) acting at `point` (one of `points`) in states x:
         Q_s = force . dv/dqdot_s, by virtual work (`dynamics.spec.generalized_forces`)."""
         if point not in self.points:
-            close = difflib.get_close_matches(str(point), list(self.points), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
+            hint = checks.did_you_mean(point, self.points)
             raise ValueError(
                 f"{self.name} has no point {point!r}.{hint} Known: "
                 f"{', '.join(self.points) or 'none (ModelSpec.points)'}."
             )
         dims = self.points[point]
-        f = checks.real_array(self.name, "force", force)
+        f = checks.real_array(force, "force", self.name)
         if f.ndim == 0 or f.shape[-1] != dims:
             raise ValueError(
                 f"{self.name}: a force at {point!r} has {dims} components, got shape {f.shape}."
@@ -288,11 +285,27 @@ class System:
         the model's conditions."""
         n = len(next(iter(values.values()))) if values else 0
         for b in range(n):
-            given = {k: v[b] for k, v in values.items()}
-            p = check_parameters(self.name, self._m.PARAMETERS, self._p, self._m.POSITIVE, given)
-            for statement, value in zip(self._m.CONDITIONS, self._m.conditions(p)):
-                if not value > 0:
-                    raise ValueError(f"{self.name}: parameters violate {statement} ({given}).")
+            self._checked({k: v[b] for k, v in values.items()}, self._p)
+
+    def _checked(self, given: dict, base=None) -> np.ndarray:
+        """The parameter vector of `given` over `base` (the defaults), checked: names, values,
+        signs, the model's conditions and its bodies' inertia (`dynamics.physical`)."""
+        m = self._m
+        p = check_parameters(
+            self.name, m.PARAMETERS, m.DEFAULTS if base is None else base, m.POSITIVE, given,
+            getattr(m, "NONNEGATIVE", ()),
+        )  # fmt: skip
+        broken = physical.problems(m, p)
+        if broken:
+            shown = given or dict(zip(m.PARAMETERS, p.tolist()))
+            raise ValueError(f"{self.name}: parameters {'; '.join(broken)} ({shown}).")
+        return p
+
+    @property
+    def bodies(self) -> dict[str, tuple[str, ...]]:
+        """The model's rigid bodies (`ModelSpec.bodies`): name -> the parameters its inertia
+        reads. Values that make one impossible are refused like a broken condition."""
+        return {name: reads for name, reads in physical.bodies(self._m)}
 
     @property
     def parameter_vector(self) -> np.ndarray:
@@ -472,7 +485,7 @@ def method_tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(a, b, c) of the integrator named `method`; ValueError naming the known ones."""
     tableau = METHODS.get(method) if isinstance(method, str) else None
     if tableau is None:
-        raise ValueError(f"Unknown integrator {method!r}; known: {', '.join(map(repr, METHODS))}.")
+        raise checks.unknown("integrator", method, checks.INTEGRATORS)
     return tableau.a, tableau.b, tableau.c
 
 

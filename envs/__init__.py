@@ -23,7 +23,7 @@ from dynamics import wrap
 
 from . import docs  # noqa: F401  (envs.docs.describe)
 from .env import LagrangianEnv
-from .randomize import Choice, LogUniform, TruncNormal, Uniform
+from .randomize import Choice, LogUniform, Same, TruncNormal, Uniform
 from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 from .vector import LagrangianVectorEnv
 
@@ -88,6 +88,7 @@ __all__ = [
     "LagrangianEnv",
     "LagrangianVectorEnv",
     "LogUniform",
+    "Same",
     "Task",
     "Term",
     "TruncNormal",

@@ -1,24 +1,20 @@
-"""Every declaration checked where it is made, each error naming the field and the entry.
+"""Checks of what users hand in (make, reset, step) and of a declaration against its model.
 
-`check_task` runs at `Task(...)` on what can be checked alone; `check_with_model` runs when
-an env is made, on what needs the compiled model (names, ranges inside limits, the operating
-point, the mass matrix, the inputs); `trial_run` calls the task's functions once as plain
-numpy on sample rows, with read-only inputs, before the runtime compiles them.
+`envs.task_checks.check_task` runs at `Task(...)` on what can be checked alone;
+`check_with_model` runs when an env is made, on what needs the compiled model (names, ranges
+inside limits, the operating point, the mass matrix, the inputs); `trial_run` calls the
+task's functions once as plain numpy on sample rows, with read-only inputs, before the
+runtime compiles them. The numbers and names themselves are checked by the one vocabulary,
+`dynamics.checks` (real arrays, positive numbers, "Did you mean").
 """
 
 from __future__ import annotations
 
-import difflib
-import math
 from collections.abc import Callable, Mapping
 
 import numpy as np
 
-ALGORITHMS = ("ppo", "sac", "td3", "a2c", "ddpg")
-"""The stable-baselines3 algorithms a task may name in `algo` and `hyperparams`."""
-PLANNER = "plan"
-"""`hyperparams["plan"]`: the trajectory planner's options (agents.plan)."""
-INTEGRATORS = ("rk4", "dop853")
+from dynamics.checks import did_you_mean, positive_float, positive_int, real_array
 
 
 class Unsupported(ValueError):
@@ -30,77 +26,15 @@ class DeclarationError(ValueError):
     """A task or model declaration that cannot work; the message names field and entry."""
 
 
-def _fail(task_name: str, field: str, problem: str) -> DeclarationError:
+def declaration_error(task_name: str, field: str, problem: str) -> DeclarationError:
+    """The error of a task's declaration: "Task 'name': `field` problem" (raise it)."""
     return DeclarationError(f"Task {task_name!r}: `{field}` {problem}")
 
 
-def _hint(name: str, known) -> str:
-    close = difflib.get_close_matches(str(name), list(known), n=1)
-    return f" Did you mean {close[0]!r}?" if close else ""
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-
-
-def _number(task_name: str, field: str, v, *, finite=True, positive=False) -> None:
-    """A declared Number (a number, a parameter name or a function of p): checked if a number."""
-    if isinstance(v, str) or (callable(v) and not _is_number(v)):
-        return
-    if not _is_number(v):
-        raise _fail(
-            task_name, field, f"must be a number, a parameter name or a function of p; got {v!r}."
-        )
-    if finite and not math.isfinite(v):
-        raise _fail(task_name, field, f"must be finite, got {v!r}.")
-    if positive and not v > 0:
-        raise _fail(task_name, field, f"must be positive, got {v!r}.")
-
-
-def _range(task_name: str, field: str, pair) -> None:
-    if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
-        raise _fail(task_name, field, f"must be a (low, high) pair, got {pair!r}.")
-    lo, hi = pair
-    _number(task_name, field, lo)
-    _number(task_name, field, hi)
-    if _is_number(lo) and _is_number(hi) and lo > hi:
-        raise _fail(task_name, field, f"has low {lo!r} above high {hi!r}.")
+_fail = declaration_error
 
 
 # ---- what users hand in at make, reset and step ---------------------------------------------
-def positive_float(name: str, value) -> float:
-    if isinstance(value, (bool, str, bytes, complex, np.complexfloating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}.")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {value!r}.") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
-    return v
-
-
-def positive_int(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {value!r}.")
-    if value < 1:
-        raise ValueError(f"{name} must be at least 1, got {value}.")
-    return int(value)
-
-
-def real_array(value, name: str) -> np.ndarray:
-    """`value` as float64; TypeError for complex, object or non-numeric input."""
-    a = np.asarray(value)
-    kind = a.dtype.kind
-    if kind == "f":
-        return a.astype(np.float64, copy=False)
-    if kind == "c":
-        raise TypeError(f"{name} must be real, got complex values {value!r}.")
-    if kind not in "biu":
-        raise TypeError(f"{name} must be numeric, got dtype {a.dtype}.")
-    return a.astype(np.float64)
-
-
 def checked_rows(value, shape: tuple[int, ...], name: str, batch: int | None) -> np.ndarray:
     """`value` as rows of `shape`: one value (shared by every row when `batch` is given) or,
     for a vector env (`batch` rows), exactly `batch` rows; finite."""
@@ -119,179 +53,6 @@ def checked_rows(value, shape: tuple[int, ...], name: str, batch: int | None) ->
     return np.array(rows, dtype=np.float64)
 
 
-# ---- at Task(...) --------------------------------------------------------------------------
-def check_task(task, features, Goal, Term, LQRHints, Heuristic) -> None:
-    """What a task declaration gets wrong on its own (see the module docstring); the
-    declaration classes are handed in by `envs.task`, which this module does not import."""
-    Derived = features[-1]
-    name = task.name
-    if not isinstance(name, str) or not name:
-        raise DeclarationError(f"A task's `name` must be a non-empty string, got {name!r}.")
-    actuated = task.actuated
-    if isinstance(actuated, str) or not isinstance(actuated, (tuple, list)) or not actuated:
-        raise _fail(
-            name, "actuated", f"must name at least one input (a tuple of names), got {actuated!r}."
-        )
-    repeated = sorted({a for a in actuated if list(actuated).count(a) > 1})
-    if repeated:
-        raise _fail(
-            name, "actuated", f"names {repeated} more than once: each action drives one input."
-        )
-    _check_max_input(task)
-    if not isinstance(task.observation, (tuple, list)) or not task.observation:
-        raise _fail(name, "observation", "must be a non-empty tuple of features.")
-    for i, f in enumerate(task.observation):
-        if not isinstance(f, features):
-            raise _fail(
-                name,
-                f"observation[{i}]",
-                f"is not a feature (Angle, AngleError, Value, Derived): {f!r}.",
-            )
-        if isinstance(f, Derived):
-            if not callable(f.fn):
-                raise _fail(name, f"observation[{i}] ({f.name})", "needs a function `fn`.")
-            _range(name, f"observation[{i}] ({f.name})", (f.low, f.high))
-        if getattr(f, "bound", None) is not None:
-            _number(name, f"observation[{i}] ({f.name}).bound", f.bound, positive=True)
-    if not task.terms or not all(isinstance(t, Term) for t in task.terms):
-        raise _fail(name, "terms", f"must be a non-empty tuple of Term, got {task.terms!r}.")
-    names = [t.name for t in task.terms]
-    if len(set(names)) != len(names):
-        raise _fail(name, "terms", f"must be named once each: {names}.")
-    with_fn = [t.fn is not None for t in task.terms]
-    if task.reward is None and not all(with_fn):
-        missing = [t.name for t in task.terms if t.fn is None]
-        raise _fail(
-            name,
-            "terms",
-            f"{missing} need a function (`Term(..., fn=...)`) or the task a `reward`.",
-        )
-    if task.reward is not None and any(with_fn):
-        raise _fail(
-            name, "reward", "and `Term(fn=...)` are two ways of giving the reward; give one."
-        )
-    if task.reward is not None and not callable(task.reward):
-        raise _fail(name, "reward", f"must be a function, got {task.reward!r}.")
-    for t in task.terms:
-        _range(name, f"terms ({t.name})", (t.low, t.high))
-        if t.fn is not None and not callable(t.fn):
-            raise _fail(name, f"terms ({t.name}).fn", f"must be a function, got {t.fn!r}.")
-    for field in ("success", "failure", "constants", "draw"):
-        v = getattr(task, field)
-        if (v is not None or field == "success") and not callable(v):
-            raise _fail(name, field, f"must be a function, got {v!r}.")
-    goals = [g.name for g in task.goal]
-    if not all(isinstance(g, Goal) for g in task.goal):
-        raise _fail(name, "goal", f"must be a tuple of Goal, got {task.goal!r}.")
-    if len(set(goals)) != len(goals):
-        raise _fail(name, "goal", f"repeats a component: {goals}.")
-    for g in task.goal:
-        _range(name, f"goal ({g.name})", (g.low, g.high))
-    if isinstance(task.start, Mapping):
-        for k, pair in task.start.items():
-            _range(name, f"start[{k!r}]", pair)
-    elif not callable(task.start):
-        raise _fail(
-            name,
-            "start",
-            f"must be {{state: (low, high)}} or a function (rng, p) -> (x, g); got {task.start!r}.",
-        )
-    if not isinstance(task.limits, Mapping):
-        raise _fail(name, "limits", f"must be {{state: bound}}, got {task.limits!r}.")
-    for k, v in task.limits.items():
-        _number(name, f"limits[{k!r}]", v, positive=True)
-    op = task.operating_point
-    if op is not None and not (isinstance(op, Mapping) or callable(op)):
-        raise _fail(name, "operating_point", f"must be a dict or a function, got {op!r}.")
-    _positive(name, "control_period", task.control_period, float)
-    _positive(name, "substeps", task.substeps, int)
-    _positive(name, "max_episode_steps", task.max_episode_steps, int)
-    if task.integrator not in INTEGRATORS:
-        raise _fail(
-            name,
-            "integrator",
-            f"must be one of {INTEGRATORS}, got "
-            f"{task.integrator!r}.{_hint(task.integrator, INTEGRATORS)}",
-        )
-    if task.algo not in ALGORITHMS:
-        raise _fail(
-            name,
-            "algo",
-            f"must be one of {ALGORITHMS}, got {task.algo!r}.{_hint(task.algo, ALGORITHMS)}",
-        )
-    if not isinstance(task.hyperparams, Mapping):
-        raise _fail(
-            name, "hyperparams", f"must map an algorithm to its settings, got {task.hyperparams!r}."
-        )
-    for algo, settings in task.hyperparams.items():
-        if algo not in (*ALGORITHMS, PLANNER):
-            raise _fail(
-                name,
-                "hyperparams",
-                f"names unknown algorithm {algo!r}; known: {ALGORITHMS}.{_hint(algo, ALGORITHMS)}",
-            )
-        if not isinstance(settings, Mapping):
-            raise _fail(name, f"hyperparams[{algo!r}]", f"must be a mapping, got {settings!r}.")
-    if not isinstance(task.lqr, LQRHints):
-        raise _fail(name, "lqr", f"must be an LQRHints, got {task.lqr!r}.")
-    _check_hints(name, task.lqr)
-    if task.heuristic is not None:
-        h = task.heuristic
-        if not isinstance(h, Heuristic) or ":" not in str(h.target):
-            raise _fail(
-                name, "heuristic", f"must be Heuristic(description, 'module:Class'), got {h!r}."
-            )
-    if not isinstance(task.outputs, (tuple, list)) or not all(
-        isinstance(o, str) for o in task.outputs
-    ):
-        raise _fail(name, "outputs", f"must be a tuple of output names, got {task.outputs!r}.")
-
-
-def _positive(task_name: str, field: str, value, kind) -> None:
-    ok = isinstance(value, (int, np.integer)) if kind is int else _is_number(value)
-    if isinstance(value, bool) or not ok:
-        raise _fail(
-            task_name,
-            field,
-            f"must be {'an integer' if kind is int else 'a number'}, got {value!r}.",
-        )
-    if not (math.isfinite(value) and value > 0):
-        raise _fail(task_name, field, f"must be positive and finite, got {value!r}.")
-
-
-def _check_max_input(task) -> None:
-    name, value, n = task.name, task.max_input, len(task.actuated)
-    if callable(value) and not _is_number(value):
-        return
-    items = [value] * n if _is_number(value) or isinstance(value, str) else value
-    if not isinstance(items, (tuple, list)) or len(items) != n:
-        raise _fail(
-            name,
-            "max_input",
-            f"needs one limit per actuated input {tuple(task.actuated)}, got {value!r}.",
-        )
-    for inp, v in zip(task.actuated, items):
-        if isinstance(v, (tuple, list)):  # an asymmetric (low, high) limit
-            _range(name, f"max_input[{inp!r}]", v)
-            lo, hi = v
-            if _is_number(lo) and _is_number(hi) and not lo < hi:
-                raise _fail(name, f"max_input[{inp!r}]", f"needs low < high, got {v!r}.")
-        else:
-            _number(name, f"max_input[{inp!r}]", v, positive=True)
-
-
-def _check_hints(task_name: str, hints) -> None:
-    for k, v in dict(hints.scales).items():
-        _number(task_name, f"lqr.scales[{k!r}]", v, positive=True)
-    _number(task_name, "lqr.default_scale", hints.default_scale, positive=True)
-    for r in np.ravel(hints.R):
-        _number(task_name, "lqr.R", r, positive=True)
-    for k, v in dict(hints.region or {}).items():
-        _number(task_name, f"lqr.region[{k!r}]", v)
-        if _is_number(v) and v < 0:
-            raise _fail(task_name, f"lqr.region[{k!r}]", f"must not be negative, got {v!r}.")
-
-
 # ---- at make, with the model ---------------------------------------------------------------
 def _known(task_name: str, field: str, names, known, what: str) -> None:
     for k in names:
@@ -299,7 +60,7 @@ def _known(task_name: str, field: str, names, known, what: str) -> None:
             raise _fail(
                 task_name,
                 field,
-                f"names unknown {what} {k!r}.{_hint(k, known)} Known: {', '.join(known)}.",
+                f"names unknown {what} {k!r}.{did_you_mean(k, known)} Known: {', '.join(known)}.",
             )
 
 
@@ -321,7 +82,8 @@ def check_with_model(plant) -> None:
                 raise _fail(
                     name,
                     f"operating_point[{k!r}]",
-                    f"names {v!r}, neither a goal component nor a parameter.{_hint(v, known)}",
+                    f"names {v!r}, neither a goal component nor a parameter."
+                    f"{did_you_mean(v, known)}",
                 )
     if isinstance(task.start, Mapping):
         for k, (lo, hi) in task.start.items():
@@ -366,8 +128,70 @@ def check_with_model(plant) -> None:
                 f"observation ({label})",
                 f"bounds [{lo:.6g}, {hi:.6g}] must be finite with low <= high.",
             )
+    _check_goal_observed(plant)
+    _check_starts(plant)
+    _check_operating_point(plant)
     _check_inputs(plant)
     _check_mass(plant)
+
+
+def _check_goal_observed(plant) -> None:
+    """A goal component drawn at reset that the operating point needs (LQR, the heuristics
+    and the hand-over regulate to it) must be read back from the observation: refused
+    here, rather than when an agent first asks."""
+    missing = plant._goal_from_obs[3]
+    op = plant.task.operating_point
+    if not missing or op is None:
+        return
+    needed = list(missing) if callable(op) else [g for g in missing if g in op.values()]
+    if needed:
+        raise _fail(
+            plant.task.name,
+            "observation",
+            f"shows no goal component {', '.join(map(repr, needed))}, which is drawn at reset "
+            "and which the operating point needs: no agent could tell the goal it should "
+            "reach. Observe it (e.g. Value(name) or AngleError(state, goal)).",
+        )
+
+
+def _check_operating_point(plant) -> None:
+    """An operating-point function, tried on sample goals and starts: one finite state per
+    row (its slips surface here, not when an agent first asks)."""
+    if not callable(plant.task.operating_point):
+        return
+    rows, g = plant.sample_rows(4)
+    x = rows[:, : len(plant.state_names)]
+    try:
+        with np.errstate(all="ignore"):
+            x0 = plant.operating_state(g, x)
+    except Exception as exc:  # the task's own function: any error is its slip
+        raise _fail(
+            plant.task.name, "operating_point", f"fails on sample rows: {type(exc).__name__}: {exc}"
+        ) from None
+    if x0.shape != x.shape or not np.isfinite(x0).all():
+        raise _fail(
+            plant.task.name,
+            "operating_point",
+            f"must give a finite state per row, shape {x.shape}; got shape {x0.shape}"
+            + ("" if x0.shape != x.shape else " with NaN or inf")
+            + ".",
+        )
+
+
+def _check_starts(plant) -> None:
+    """The start distribution (a function's too, tried here on sample draws) gives states
+    within the task's limits: one beyond would be observed clipped and end at once."""
+    x = plant.sample_states(8)
+    over = np.abs(x) > plant.limits
+    if over.any():
+        row, i = (int(v) for v in np.argwhere(over)[0])
+        raise _fail(
+            plant.task.name,
+            "start",
+            f"gives {plant.state_names[i]} = {x[row, i]:.6g}, beyond `limits"
+            f"[{plant.state_names[i]!r}]` = {plant.limits[i]:.6g}: every such episode would "
+            "end at once.",
+        )
 
 
 def _check_inputs(plant) -> None:
@@ -512,3 +336,8 @@ def trial_run(plant, functions) -> None:
             _column(name, label, out, n, "bool")
         else:
             _column(name, label, out, n, "real")
+
+
+__all__ = ["DeclarationError", "Unsupported", "check_equilibrium", "check_with_model",
+           "checked_rows", "declaration_error", "positive_float", "positive_int", "real_array",
+           "trial_run"]  # fmt: skip

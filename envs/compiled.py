@@ -8,6 +8,7 @@ import warnings
 
 import numpy as np
 
+from dynamics.cache import keep_numba_cache_true
 from dynamics.system import BLOCK, method_tableau
 
 from . import checks, fused, names
@@ -38,6 +39,8 @@ def compile_task_function(fn, args):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", numba.NumbaWarning)
                 jitted = numba.njit(cache=cache, boundscheck=True)(fn)
+                if cache:  # helpers in other files: numba's cache would not see their edits
+                    keep_numba_cache_true(jitted, fn)
                 jitted(*args)
             compiled = jitted
             break

@@ -5,7 +5,6 @@ declared form (a (low, high) pair, a dataclass, or a plain dict with `dist`)."""
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -13,18 +12,25 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from .checks import real_array
+from dynamics import checks
+from dynamics.checks import did_you_mean, real_array
 
 APPLY = ("absolute", "scale", "offset")
 WHEN = ("reset", "construction")
 
 
+MAX_WHEN = 2**31 - 1
+"""The longest redraw interval in steps (a copy's step count is an int64; far beyond any
+episode)."""
+
+
 def _when(when) -> str | int:
     whole = isinstance(when, (int, np.integer)) and not isinstance(when, bool)
-    if when in WHEN or (whole and when >= 1):
+    if (isinstance(when, str) and when in WHEN) or (whole and 1 <= when <= MAX_WHEN):
         return int(when) if whole else when
     raise ValueError(
-        f"when must be 'reset', 'construction' or a whole number of steps >= 1, got {when!r}."
+        f"when must be 'reset', 'construction' or a whole number of steps in 1..{MAX_WHEN}, "
+        f"got {when!r:.60}.{did_you_mean(when, WHEN) if isinstance(when, str) else ''}"
     )
 
 
@@ -39,8 +45,11 @@ class _Distribution:
     """What the distributions share: `apply`, `when`, their checks and `support`."""
 
     def _check(self) -> None:
-        if self.apply not in APPLY:
-            raise ValueError(f"apply must be one of {APPLY}, got {self.apply!r}.")
+        if not isinstance(self.apply, str) or self.apply not in APPLY:
+            raise ValueError(
+                f"apply must be one of {APPLY}, got {self.apply!r}."
+                + (did_you_mean(self.apply, APPLY) if isinstance(self.apply, str) else "")
+            )
         object.__setattr__(self, "when", _when(self.when))
 
     def value(self, draw: float, nominal: float) -> float:
@@ -173,8 +182,9 @@ class Choice(_Distribution):
                     f"Choice.weights must be {len(self.values)} finite numbers >= 0, "
                     f"got {self.weights!r}."
                 )
-            if not w.sum() > 0:
+            if not w.max() > 0:
                 raise ValueError("Choice.weights must not all be 0.")
+            w = w / w.max()  # (weights near the float limit would sum to inf)
             object.__setattr__(self, "weights", tuple((w / w.sum()).tolist()))
         self._check()
 
@@ -187,14 +197,47 @@ class Choice(_Distribution):
         return min(self.values), max(self.values)
 
 
+@dataclass(frozen=True)
+class Same:
+    """The draw of another randomised parameter, applied to this one's nominal value:
+    `{"I": Uniform(0.75, 1.25, apply="scale"), "J": Same("I")}` scales a body's moments
+    by one factor, so that it stays a body (`ModelSpec.bodies`). `parameter` must be
+    declared before, with a distribution of its own; `apply` and `when` are its."""
+
+    parameter: str
+    dist: Uniform | LogUniform | TruncNormal | Choice | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.parameter, str):
+            raise ValueError(f"Same needs a parameter name, got {self.parameter!r}.")
+
+    @property
+    def apply(self) -> str:
+        return self.dist.apply
+
+    @property
+    def when(self):
+        return self.dist.when
+
+    def value(self, draw: float, nominal: float) -> float:
+        return self.dist.value(draw, nominal)
+
+    def support(self, nominal: float) -> tuple[float, float]:
+        return self.dist.support(nominal)
+
+    def ends(self) -> tuple[float, float]:
+        return self.dist.ends()
+
+
 DISTRIBUTIONS = {
     "uniform": Uniform,
     "loguniform": LogUniform,
     "truncnormal": TruncNormal,
     "choice": Choice,
+    "same": Same,
 }
 """The plain-dict form's `dist` names."""
-Distribution = Uniform | LogUniform | TruncNormal | Choice
+Distribution = Uniform | LogUniform | TruncNormal | Choice | Same
 
 
 def distribution(value, name: str = "") -> Distribution:
@@ -207,11 +250,7 @@ def distribution(value, name: str = "") -> Distribution:
         kind = value.get("dist", "uniform")
         cls = DISTRIBUTIONS.get(kind) if isinstance(kind, str) else None
         if cls is None:
-            close = difflib.get_close_matches(str(kind), list(DISTRIBUTIONS), n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            raise ValueError(
-                f"{where}: unknown dist {kind!r}.{hint} Known: {', '.join(DISTRIBUTIONS)}."
-            )
+            raise checks.unknown("dist", kind, DISTRIBUTIONS, where)
         known = [f.name for f in fields(cls)]
         unknown = sorted(set(value) - set(known) - {"dist"})
         if unknown:
@@ -237,5 +276,5 @@ def distribution(value, name: str = "") -> Distribution:
     return Uniform(lo, hi)
 
 
-__all__ = ["APPLY", "DISTRIBUTIONS", "WHEN", "Choice", "LogUniform", "TruncNormal", "Uniform",
-           "distribution"]  # fmt: skip
+__all__ = ["APPLY", "DISTRIBUTIONS", "WHEN", "Choice", "LogUniform", "Same", "TruncNormal",
+           "Uniform", "distribution"]  # fmt: skip

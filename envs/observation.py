@@ -19,13 +19,14 @@ inverse maps (observation -> state and goal) need.
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from dynamics.checks import did_you_mean
 
 from .task import Angle, AngleError, Derived, Task, Value, resolve
 
@@ -110,8 +111,7 @@ class _Compiler:
         if name in self.goal_names:
             return self.nx + self.goal_names.index(name)
         known = list(self.row_names) + list(self.goal_names)
-        close = difflib.get_close_matches(name, known, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
+        hint = did_you_mean(name, known)
         raise ValueError(
             f"Task {self.task.name!r}: {type(feature).__name__}({name!r}) names nothing "
             f"known.{hint} State and outputs: {', '.join(self.row_names)}; goal: "

@@ -25,6 +25,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .checks import real_array
+from .distributions import Same
 from .randomize import parameter_name
 
 
@@ -261,12 +262,13 @@ _RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_
              "term_low", "term_high")  # fmt: skip
 
 
-def _at(plant, name: str, value: float):
-    """`plant`'s task built with parameter `name` at `value` (nothing randomised)."""
+def _at(plant, values: dict):
+    """`plant`'s task built with the parameters `values` (name -> value) changed (nothing
+    randomised)."""
     from .plant import Plant
 
     options = {k: v for k, v in plant.options.items() if k not in ("observe_params", "perturb")}
-    return Plant.build(plant.task, {**options, **plant.params, name: value, "randomize": False})
+    return Plant.build(plant.task, {**options, **plant.params, **values, "randomize": False})
 
 
 def _moved(plant, other) -> set[str]:
@@ -297,10 +299,14 @@ def warn_nominal(plant) -> bool:
     labels, rowwise = _functions_reading(plant, nudged)
     rowwise &= bool(labels)
     changed = {}
-    for name in spec.dists:
+    for name, d in spec.dists.items():
+        if isinstance(d, Same):  # moved with the parameter it follows
+            continue
         changed[name] = set()
-        for end in spec.support(name):
-            other = _at(plant, name, end)
+        group = [name] + [k for k, f in spec.dists.items() if getattr(f, "parameter", 0) == name]
+        for end in d.ends():  # the parameter and those drawn Same as it, at an end
+            other = _at(plant, {k: spec.dists[k].value(end, spec.nominal[spec.columns[k]])
+                                for k in group})  # fmt: skip
             changed[name] |= _moved(plant, other)
             changed[name] |= {
                 f"constant {k!r}"

@@ -52,7 +52,6 @@ step is one compiled kernel (`_step`): benchmarks/env_speed.py --perturb measure
 
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
 from collections.abc import Mapping
@@ -60,6 +59,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from dynamics.checks import did_you_mean
 
 KEYS = ("obs_noise", "action_noise", "motor_k", "delay", "push")
 PUSH_KEYS = ("force", "every", "duration", "point")
@@ -71,9 +72,10 @@ step): a Python call per copy and step would cost more than the step at N = 1024
 def _unknown(keys, known, where: str) -> None:
     for key in keys:
         if key not in known:
-            close = difflib.get_close_matches(str(key), known, n=1)
-            hint = f" Did you mean {close[0]!r}?" if close else ""
-            raise ValueError(f"Unknown key {key!r} in {where}.{hint} Known: {', '.join(known)}.")
+            raise ValueError(
+                f"Unknown key {key!r} in {where}.{did_you_mean(key, known)} "
+                f"Known: {', '.join(known)}."
+            )
 
 
 def _sizes(value, n: int, name: str, what: str) -> np.ndarray:
@@ -167,6 +169,11 @@ class Perturbations:
                 raise ValueError(
                     f"perturb['delay'] must be an int >= 0 (control periods), got {d!r}."
                 )
+            if d > plant.task.max_episode_steps:
+                raise ValueError(
+                    f"perturb['delay'] = {d} control periods is longer than an episode "
+                    f"({plant.task.max_episode_steps}): no command would ever act."
+                )
             out["delay"] = int(d)
         if "push" in value:
             out["push"] = _push(value["push"], plant)
@@ -189,15 +196,20 @@ def _push(value, plant) -> Push:
         )
     point = value.get("point", next(iter(points)))
     if point not in points:
-        close = difflib.get_close_matches(str(point), list(points), n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
         raise ValueError(
-            f"perturb['push']['point'] = {point!r} is not a point of {system.name}.{hint} "
+            f"perturb['push']['point'] = {point!r} is not a point of {system.name}."
+            f"{did_you_mean(point, points)} "
             f"Known: {', '.join(points)}."
         )
     force = _positive(value, "force", None, zero_ok=True)
     every = _positive(value, "every", 2.0)
     duration = _positive(value, "duration", 0.1)
+    longest = plant.task.max_episode_steps * plant.control_period
+    if duration > longest:
+        raise ValueError(
+            f"perturb['push']['duration'] = {duration:g} s is longer than an episode "
+            f"({longest:g} s): give at most that (a push lasting the whole episode)."
+        )
     periods = max(1, round(duration / plant.control_period))
     return Push(force, every, periods, point, list(points).index(point), points[point])
 

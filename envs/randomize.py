@@ -18,10 +18,12 @@ the env's seed being known only then, and again only at a reset given a seed, so
 `reset(seed=s)` reproduces a fresh env; autoresets and unseeded resets keep it), or an int
 k (at every reset and every k steps of the copy, mid-episode).
 
-Physically impossible draws are refused when the env is made, never redrawn: the values a
-declaration can reach (its support, after `apply`) must be finite, positive for a
-parameter the model declares positive, and meet the model's conditions at every corner of
-the box of supports (all lows and all highs beyond 10 parameters). Each copy draws from its
+`Same(name)` gives a parameter the draw of `name` (declared before it): a body's moments
+scaled by one factor stay a body's. Physically impossible draws are refused when the env
+is made, never redrawn: the values a declaration can reach (its support, after `apply`)
+must be finite, positive (or not negative) where the model declares so, and meet the
+model's conditions and give its bodies possible inertia over the whole box of supports
+(`dynamics.physical.box_problem`). Each copy draws from its
 own generator (the env's; copy i of a vector env: seed + i), parameters in the order
 declared, so a copy reproduces a single env seeded like it.
 
@@ -38,27 +40,17 @@ values to the observation (context features, `envs.observation.Context`).
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
-from .distributions import Choice, LogUniform, TruncNormal, Uniform, distribution
+from dynamics import physical
+
+from .distributions import Choice, LogUniform, Same, TruncNormal, Uniform, distribution
 from .observation import Context
-
-
-def parameter_name(system, key, where: str) -> None:
-    """ValueError (with a "Did you mean") unless `key` is a parameter of `system`."""
-    known = list(system.parameters)
-    if key not in known:
-        close = difflib.get_close_matches(str(key), known, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
-        raise ValueError(
-            f"{where}: {key!r} is not a parameter of {system.name}.{hint} "
-            f"Known: {', '.join(known)}."
-        )
+from .randomize_checks import axes, check_support, follow, parameter_name, whole_bodies_hint
 
 
 @dataclass(frozen=True)
@@ -81,31 +73,22 @@ class Randomization:
                 f"{type(value).__name__}."
             )
         names = list(system.parameters)
-        positive = system.positive
         nominal = system.parameter_vector
-        dists, supports = {}, {}
+        dists = {}
         for key, form in value.items():
             parameter_name(system, key, "randomize")
             dists[key] = d = distribution(form, key)
-            lo, hi = d.support(nominal[names.index(key)])
-            if not (np.isfinite(lo) and np.isfinite(hi)):
-                raise ValueError(f"randomize[{key!r}] = {form!r} reaches non-finite values.")
-            if positive[key] and not lo > 0:
-                raise ValueError(
-                    f"randomize[{key!r}] = {form!r} would draw impossible values: {key} of "
-                    f"{system.name} must be positive, so low must be > 0 (the lowest value "
-                    f"it reaches is {lo:.6g})."
-                )
-            supports[key] = (lo, hi)
-        keys = list(supports)
-        every = len(keys) <= 10  # every corner; beyond, all lows and all highs
-        for c in range(2 ** len(keys)) if every else range(2):
-            corner = {k: supports[k][(c >> j) & 1 if every else c] for j, k in enumerate(keys)}
-            try:
-                system.check_parameter_rows({k: [v] for k, v in corner.items()})
-            except ValueError as exc:
-                raise ValueError(f"randomize {value!r} reaches invalid parameters: {exc}") from None
-        return cls(dists, {k: names.index(k) for k in dists}, nominal)
+            if isinstance(d, Same):
+                dists[key] = follow(d, key, dists)
+            check_support(system, key, form, dists[key].support(nominal[names.index(key)]))
+        columns = {k: names.index(k) for k in dists}
+        why = physical.box_problem(system.kernel_module, nominal, axes(dists, columns, nominal))
+        if why is not None:
+            raise ValueError(
+                f"randomize {value!r:.300} reaches impossible parameters of {system.name}: "
+                f"{why}.{whole_bodies_hint(system, dists)}"
+            )
+        return cls(dists, columns, nominal)
 
     def support(self, name: str) -> tuple[float, float]:
         """The values parameter `name` can take."""
@@ -122,9 +105,11 @@ class Randomization:
 
     def draw_into(self, rng, row: np.ndarray, names) -> None:
         """Draw the parameters `names` (in the order declared) into `row` (n_p,)."""
+        draws = {}
         for name in names:
             d, j = self.dists[name], self.columns[name]
-            row[j] = d.value(d.sample(rng), self.nominal[j])
+            draws[name] = draws[d.parameter] if isinstance(d, Same) else d.sample(rng)
+            row[j] = d.value(draws[name], self.nominal[j])
 
 
 def observed(spec: Randomization | None, observe) -> tuple[Context, ...]:
@@ -160,6 +145,7 @@ __all__ = [
     "Choice",
     "LogUniform",
     "Randomization",
+    "Same",
     "TruncNormal",
     "Uniform",
     "distribution",

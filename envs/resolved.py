@@ -5,7 +5,6 @@ options. `envs.plant.Plant.build` composes them."""
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Mapping
 from functools import cache
 from typing import Any
@@ -13,6 +12,8 @@ from typing import Any
 import numpy as np
 
 import dynamics
+from dynamics.checks import did_you_mean
+from dynamics.model import factory_target
 from dynamics.system import method_tableau
 
 from . import checks
@@ -62,13 +63,11 @@ def _model(model) -> dynamics.Model:
         return dynamics.get_model(model)
     if isinstance(model, dynamics.Model):
         return model
-    if callable(model):
-        module, qualname = getattr(model, "__module__", None), getattr(model, "__qualname__", "")
-        if module and "<" not in qualname and module != "__main__":
-            # an importable factory: keyed by its source file, so a warm cache never
-            # rebuilds the spec (as for the registered models)
-            return dynamics.Model(f"{module}:{qualname}", name=model.__name__)
-        return dynamics.Model(model)
+    if callable(model) or isinstance(model, staticmethod):
+        target = factory_target(model)  # importable: keyed by its source file, and a warm
+        if target is None:  # cache never rebuilds the spec (as for the registered models)
+            return dynamics.Model(model)
+        return dynamics.Model(target, name=target.rsplit(".", 1)[-1].split(":")[-1])
     raise TypeError(
         "A task's model must be a registered model name, a dynamics.Model, a ModelSpec "
         f"factory or a dynamics.System; got {type(model).__name__}."
@@ -89,8 +88,7 @@ def compile_system(model, params: dict) -> dynamics.System:
     system = model if isinstance(model, dynamics.System) else _model(model).compile()
     known = list(system.parameters)
     key = next(k for k in params if k not in known)
-    close = difflib.get_close_matches(key, known + list(ENV_OPTIONS), n=1)
-    hint = f" Did you mean {close[0]!r}?" if close else ""
+    hint = did_you_mean(key, known + list(ENV_OPTIONS))
     raise ValueError(
         f"Unknown argument {key!r}.{hint} Known: {', '.join(ENV_OPTIONS)} and the "
         f"parameters of {system.name}: {', '.join(known)}."
@@ -149,8 +147,7 @@ def stepping(task: Task, opts: dict) -> dict:
 def index_of(task: Task, names: tuple[str, ...], name: str, where: str) -> int:
     """The position of state component `name` (ValueError with a suggestion)."""
     if name not in names:
-        close = difflib.get_close_matches(name, names, n=1)
-        hint = f" Did you mean {close[0]!r}?" if close else ""
+        hint = did_you_mean(name, names)
         raise ValueError(
             f"Task {task.name!r}: unknown state component {name!r} in `{where}`.{hint} "
             f"Known: {', '.join(names)}."

@@ -38,8 +38,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .checks import DeclarationError, check_task
+from .checks import DeclarationError
 from .distributions import distribution
+from .task_checks import check_task
 
 FORMER_FORM = (
     "Task {name!r}: `reward=` (one function returning every term, reading columns by "

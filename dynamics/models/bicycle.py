@@ -228,4 +228,12 @@ def whipple_bicycle() -> ModelSpec:
         description=whipple_bicycle.__doc__,
         # B's mass centre (rider included), components along B's axes
         points={"rear_frame": v_B},
+        # the wheels are bodies of revolution (a diameter, the axle, a diameter); the frames'
+        # tensors about their mass centres: each set of values must be some body's inertia
+        bodies={
+            "rear wheel": (I_Rxx, I_Ryy, I_Rxx),
+            "rear frame": I_B,
+            "front frame": I_H,
+            "front wheel": (I_Fxx, I_Fyy, I_Fxx),
+        },
     )

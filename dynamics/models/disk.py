@@ -75,4 +75,5 @@ def rolling_disk() -> ModelSpec:
         },
         description=rolling_disk.__doc__,
         points={"centre": v_centre.to_matrix(N)},
+        bodies={"disk": (I, I, J)},  # about two diameters and the axle (J <= 2 I)
     )

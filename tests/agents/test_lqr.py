@@ -255,7 +255,7 @@ def test_command_line_prints_the_design_and_scores(tmp_path, capsys):
         "gain K",
         "closed-loop |z|",
         "LQR: success 10/10",
-        "zero torque: success",
+        "zero input: success",
     ):
         assert part in text
     assert out.read_bytes()[:4] == b"\x89PNG"

@@ -219,9 +219,7 @@ def _toy(tmp_path, monkeypatch, root=None):
     return key, f"KEY = {key!r}\nVALUE = 1\n", root / f"toy_{key[:20]}.py"
 
 
-def test_a_module_whose_text_differs_from_the_expected_is_rewritten_not_run(
-    tmp_path, monkeypatch
-):
+def test_a_module_whose_text_differs_from_the_expected_is_rewritten_not_run(tmp_path, monkeypatch):
     """The fused step's loader knows the exact text: an edited body under a recomputed
     (self-consistent) header is not run."""
     key, body, path = _toy(tmp_path, monkeypatch)
@@ -362,3 +360,97 @@ def test_a_factory_is_keyed_on_the_users_modules_it_imports(tmp_path, monkeypatc
     before = model_module._code_fingerprint.__wrapped__("k_factory:factory")
     (tmp_path / "k_consts.py").write_text("LENGTH = 2.0\n")
     assert model_module._code_fingerprint.__wrapped__("k_factory:factory") != before
+
+
+@contextlib.contextmanager
+def _umask(mask: int):
+    import os
+
+    old = os.umask(mask)
+    try:
+        yield
+    finally:
+        os.umask(old)
+
+
+def test_a_cache_made_under_umask_002_is_used_its_numba_folder_private(tmp_path, monkeypatch):
+    """Under umask 002 (group-writable folders by default) the cache and numba's
+    __pycache__ are made 0o700 here, and the second load finds the first one's module."""
+    key, body, path = _toy(tmp_path, monkeypatch)
+    with _umask(0o002), warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no "not used" warning
+        assert cache.load("toy", key, body).VALUE == 1
+        monkeypatch.setattr(cache, "_loaded", {})
+        assert cache.load("toy", key).VALUE == 1  # from disk, not rebuilt
+    for folder in (path.parent, path.parent / "__pycache__"):
+        assert stat.S_IMODE(folder.stat().st_mode) == 0o700
+
+
+@pytest.mark.parametrize("members, used", [([], True), (["mallory"], False)])
+def test_a_group_writable_cache_is_refused_only_when_another_user_is_in_the_group(
+    tmp_path, monkeypatch, members, used
+):
+    """Group write permission is another user's only where the group has another member
+    (with a user's private group, the common case under umask 002, it is not)."""
+    root = tmp_path / "cache"
+    (root / "__pycache__").mkdir(parents=True)
+    for folder in (root, root / "__pycache__"):
+        folder.chmod(0o775)  # as numba makes it under umask 002
+    monkeypatch.setattr(cache, "group_members_besides_me", lambda gid: members)
+    key, body, path = _toy(tmp_path, monkeypatch, root)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cache.load("toy", key, body).VALUE == 1
+    refused = [w for w in caught if "model cache is not used" in str(w.message)]
+    assert path.exists() is used
+    assert bool(refused) is not used
+    if refused:
+        assert "mallory" in str(refused[0].message)
+
+
+def test_a_group_that_cannot_be_looked_up_counts_as_shared():
+    assert cache.group_members_besides_me(2**31 - 7) == ["unknown users"]
+
+
+@pytest.mark.slow  # two fresh processes compiling with numba: ~5 s
+def test_an_edited_helper_in_another_file_is_not_served_from_numba_s_cache(tmp_path):
+    """numba keys a cached function on its own file only; the helper it calls lives in
+    another file, whose edit must still reach the compiled function."""
+    import os
+
+    helper = tmp_path / "helper_mod.py"
+    helper.write_text(
+        "from numba import njit\n\n\n@njit(cache=True)\ndef helper(x):\n    return x * 2.0\n"
+    )
+    (tmp_path / "task_mod.py").write_text(
+        "from helper_mod import helper\n\n\ndef reward(x):\n    return helper(x) + 1.0\n"
+    )
+    code = (
+        "import numba, task_mod\n"
+        "from dynamics.cache import keep_numba_cache_true\n"
+        "j = numba.njit(cache=True)(task_mod.reward)\n"
+        "keep_numba_cache_true(j, task_mod.reward)\n"
+        "print(j(1.0))\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{root}",
+           "LAGRANGE_GYM_CACHE": str(tmp_path / "cache")}  # fmt: skip
+
+    def run() -> str:
+        out = subprocess.run([sys.executable, "-c", code], env=env, cwd=tmp_path,
+                             capture_output=True, text=True, check=True)  # fmt: skip
+        return out.stdout.strip()
+
+    assert run() == "3.0"
+    helper.write_text(helper.read_text().replace("x * 2.0", "x * 5.0"))
+    assert run() == "6.0"
+
+
+def test_a_module_file_another_user_may_write_is_rebuilt_not_run(tmp_path, monkeypatch):
+    key, body, path = _toy(tmp_path, monkeypatch)
+    marker = tmp_path / "ran"
+    path.parent.mkdir(mode=0o700)
+    path.write_text(cache.stamped(key, body + f"open({str(marker)!r}, 'w').close()\n"))
+    path.chmod(0o666)  # a stamped, self-consistent file anyone may have written
+    assert cache.load("toy", key) is None  # discarded, not run
+    assert not marker.exists() and not path.exists()

@@ -1,0 +1,379 @@
+"""Bad inputs on the randomisation, per-copy values, perturbation, benchmark, training and
+model surfaces end in a clear refusal naming the problem (or, where the input is valid, in
+the right behaviour), never in a numba error, a traceback or a silent impossible plant.
+
+One table per class of the reliability issue: each entry is what a user hands in and the
+words its one-line error must contain. The cache's umask cases are in
+tests/dynamics/test_cache.py, the declarations of a task in tests/envs/test_declarations.py."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import types
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import sympy as sp
+import sympy.physics.mechanics as me
+
+import dynamics
+import envs
+from agents.common import UserError
+from dynamics.spec import ModelSpec, Param
+from envs.checks import DeclarationError
+from examples import cart_pole
+
+ARM, DISK, CRANK = "Lagrange/TwoLinkArm-v1", "Lagrange/RollingDisk-v1", "Lagrange/CrankSlider-v1"
+BASE = cart_pole.TASK
+
+
+def _make(env_id, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # limits at nominal values
+        gym.make(env_id, **kw).reset(seed=0)
+
+
+def _vec_reset(env_id, n, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kw)
+    vec.reset(seed=0)
+    return vec
+
+
+def _start_far_out(rng, p):
+    return np.array([10.0, 0.0, 0.0, 0.0]), np.zeros(0)
+
+
+def _nan_point(g, x, system):
+    return np.full((len(x), 4), np.nan)
+
+
+def _x_star():
+    goal = (envs.Goal("x*", "m", -1.0, 1.0),)
+    return dataclasses.replace(BASE, goal=goal, operating_point={"x": "x*"})
+
+
+def _undeclared_symbol():
+    q = me.dynamicsymbols("q")
+    m, k = sp.symbols("m k")  # k is used in V but not declared
+    return ModelSpec("spring", (q,), m * q.diff() ** 2 / 2, k * q**2 / 2, {m: Param(1.0, "kg")})
+
+
+def _nan_default():
+    return Param(float("nan"), "kg")
+
+
+# ---- 1. physical bodies ------------------------------------------------------------------
+# (what the user does, the exception, the words its message must contain)
+BODIES = {
+    "disk moments drawn apart": (
+        lambda: _make(DISK, randomize={"I": (0.015, 0.03), "J": (0.03, 0.06)}),
+        ValueError,
+        ["body 'disk'", "J at its high end", "Same('I')"],
+    ),
+    "a thin disk's J above 2 I": (
+        lambda: dynamics.get_model("rolling_disk").compile(J=0.05),
+        ValueError,
+        ["triangle inequality"],
+    ),
+    "a bicycle frame's product of inertia x 4": (
+        lambda: dynamics.get_model("whipple_bicycle").compile(I_Bxz=9.6),
+        ValueError,
+        ["rear frame", "not positive definite"],
+    ),
+    "per-copy values of an impossible disk": (
+        lambda: _vec_reset(DISK, 2, randomize={}).reset(options={"params": {"J": 0.09}}),
+        ValueError,
+        ["body 'disk'"],
+    ),
+    "a condition broken off the all-low/all-high diagonal": (
+        lambda: _make(CRANK, randomize={"l": (0.25, 0.4), "R": (0.05, 0.2), "h": (-0.1, 0.1)}),
+        ValueError,
+        ["l > R + |h|", "at its high end"],
+    ),
+    "a boolean parameter value": (lambda: _make(ARM, m2=True), TypeError, ["'m2'", "number"]),
+    "a boolean in a distribution": (
+        lambda: envs.Uniform(True, 2.0),
+        TypeError,
+        ["Uniform.low", "booleans"],
+    ),
+    "a boolean per-copy value": (
+        lambda: _vec_reset(ARM, 2, randomize={}).reset(options={"params": {"m2": True}}),
+        TypeError,
+        ["options['params']['m2']", "booleans"],
+    ),
+    "Same before its parameter": (
+        lambda: _make(DISK, randomize={"J": envs.Same("I"), "I": (0.02, 0.03)}),
+        ValueError,
+        ["Same('I')", "declared before"],
+    ),
+    "a randomised value beyond the parameter range": (
+        lambda: _make(ARM, randomize={"m2": (1.0, 1e60)}),
+        ValueError,
+        ["out of range"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", BODIES)
+def test_no_impossible_body_is_simulated(case):
+    make, error, words = BODIES[case]
+    with pytest.raises(error) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+
+
+def test_a_non_negative_parameter_refuses_a_negative_value_and_range():
+    from dynamics.system import check_parameters
+    from envs.randomize_checks import check_support
+
+    with pytest.raises(ValueError, match="'mu' of toy must not be negative"):
+        check_parameters("toy", ("mu",), (0.1,), (False,), {"mu": -0.1}, (True,))
+    assert check_parameters("toy", ("mu",), (0.1,), (False,), {"mu": 0.0}, (True,)) == [0.0]
+    module = types.SimpleNamespace(POSITIVE=(False,), NONNEGATIVE=(True,))
+    system = types.SimpleNamespace(
+        name="toy", parameters={"mu": 0.1}, kernels=lambda: (module, None)
+    )
+    with pytest.raises(ValueError, match="must be non-negative, so low must be >= 0"):
+        check_support(system, "mu", (-0.1, 0.2), (-0.1, 0.2))
+    check_support(system, "mu", (0.0, 0.2), (0.0, 0.2))
+
+
+def test_inertial_randomisation_draws_each_declared_body_as_a_whole():
+    from agents.randomization import env_kwargs
+
+    kw = env_kwargs(DISK, {"inertial": 0.25})
+    assert kw["randomize"]["J"] == {"dist": "same", "parameter": "I"}
+    params = _vec_reset(DISK, 16, **kw).reset(seed=3)[1]["params"]
+    np.testing.assert_allclose(params["I"] / 0.0225, params["J"] / 0.045)  # one factor
+    assert np.ptp(params["I"]) > 0  # and it varies from copy to copy
+
+
+def test_robustness_grids_skip_and_report_impossible_points_only():
+    from benchmarks.robustness import quantities
+
+    scales = [0.5, 1.0, 2.0]
+    qs = {q.name: q for q in quantities(DISK, 3, ["inertial"], scales)}
+    assert [x for x, _ in qs["J"].points] == [0.5, 1.0]  # J x 2 > 2 I: no disk
+    assert [x for x, _ in qs["J"].impossible] == [2.0]
+    assert "triangle inequality" in qs["J"].impossible[0][1]
+    assert [x for x, _ in qs["body disk"].points] == scales  # scaled as a whole: all fine
+    assert [x for x, _ in qs["m"].points] == scales
+
+
+# ---- 3. commands: arguments checked before work, one line -----------------------------------
+COMMANDS = {
+    "unknown env": (["--envs", "Lagrange/TwoLinkArm-v9"], "Did you mean"),
+    "misspelt quantity": (["--envs", ARM, "--quantities", "m22"], "Did you mean 'm2'"),
+    "nan scale": (["--scales", "1,nan"], "scale nan must be a finite number"),
+    "huge scale": (["--scales", "0.5,1e300"], "scale 1e300"),
+    "negative seed": (["--seed", "-1"], "--seed must be >= 0"),
+    "huge episodes": (["--episodes", "100000000"], "--episodes must be within"),
+    "misspelt agent": (["--agents", "lqq"], "Did you mean 'lqr'"),
+    "--out a file": (["--out", __file__], "is a file, not a folder"),
+    "render a missing file": (["--render", "/nonexistent/results.json"], "is not a file"),
+}
+
+
+@pytest.mark.parametrize("case", COMMANDS)
+def test_the_robustness_benchmark_checks_every_argument_first(case, capsys, tmp_path):
+    from benchmarks import robustness
+
+    argv, words = COMMANDS[case]
+    if "--out" not in argv:
+        argv = [*argv, "--out", str(tmp_path / "out")]
+    with pytest.raises(SystemExit) as info:
+        robustness.main(argv)
+    err = capsys.readouterr().err.strip()
+    assert info.value.code == 2 and words in err and "Traceback" not in err
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+@pytest.mark.parametrize("content", ["{", '{"rows": []}', "\x00\x01"])
+def test_render_refuses_a_truncated_or_foreign_file(content, capsys, tmp_path):
+    from benchmarks import robustness
+
+    path = tmp_path / "results.json"
+    path.write_bytes(content.encode("latin-1"))
+    with pytest.raises(SystemExit) as info:
+        robustness.main(["--render", str(path), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "--render" in err and "Traceback" not in err
+
+
+def test_agents_lqr_checks_its_output_file_before_the_work(capsys, tmp_path):
+    from agents import lqr
+
+    with pytest.raises(SystemExit) as info:
+        lqr.main([ARM, "--plot", str(tmp_path / "no" / "such" / "folder.png")])
+    err = capsys.readouterr()
+    assert info.value.code == 2 and "does not exist" in err.err and err.out == ""
+
+
+# ---- 4. bounds on perturbation and randomisation numbers -------------------------------------
+BOUNDS = {
+    "push duration 1e300": (
+        lambda: _make(ARM, perturb={"push": {"force": 1.0, "duration": 1e300}}),
+        ["duration", "longer than an episode"],
+    ),
+    "delay of 1e9 control periods": (
+        lambda: _make(ARM, perturb={"delay": 10**9}),
+        ["delay", "no command would ever act"],
+    ),
+    "when = 2**70": (
+        lambda: _make(ARM, randomize={"m2": envs.Uniform(0.9, 1.1, when=2**70)}),
+        ["2147483647"],
+    ),
+    "a start function far outside the limits": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, start=_start_far_out)),
+        ["`start`", "beyond `limits['x']`"],
+    ),
+    "a handover shaping of 1e308": (
+        lambda: __import__("agents.handover").handover.handover_options(
+            {"level": 1.0, "shaping": 1e308}
+        ),
+        ["shaping in [0, 1e+06]"],
+    ),  # fmt: skip
+}
+
+
+@pytest.mark.parametrize("case", BOUNDS)
+def test_numbers_that_would_break_the_env_are_refused_when_it_is_made(case):
+    make, words = BOUNDS[case]
+    with pytest.raises(ValueError) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+
+
+def test_choice_weights_near_the_float_limit_draw_normally():
+    vec = _vec_reset(ARM, 4, randomize={"m2": envs.Choice((0.9, 1.1), weights=(1e308, 1e308))})
+    params = vec.reset(seed=1)[1]["params"]["m2"]
+    assert set(params.tolist()) <= {0.9, 1.1}
+
+
+# ---- 5. records that stay true ---------------------------------------------------------------
+def test_a_resume_with_another_randomisation_is_refused(tmp_path):
+    import yaml
+
+    from agents.rundir import check_resume_randomize as check_resume
+
+    config = {"env_id": ARM, "algo": "ppo", "hyperparams": {"randomize": {"inertial": 0.25}}}
+    (tmp_path / "config.yml").write_text(yaml.safe_dump(config))
+    check_resume(tmp_path, {"inertial": 0.25})  # the same: resumes
+    with pytest.raises(UserError, match="was trained with randomised: every mass"):
+        check_resume(tmp_path, {"inertial": 0.5})
+    with pytest.raises(UserError, match="not nominal parameters"):
+        check_resume(tmp_path, None)
+
+
+def test_the_zero_baseline_applies_zero_input_to_a_one_sided_input():
+    from agents.policies import ZeroPolicy
+
+    env = envs.LagrangianEnv(dataclasses.replace(BASE, max_input=((0.0, 10.0),)))
+    obs, _ = env.reset(seed=0)
+    policy = ZeroPolicy(env)
+    action, _ = policy.predict(obs)
+    assert action.tolist() == [-1.0]  # the bottom of [0, 10]: no force, not 5 N
+    assert env.step(action)[4]["input"].tolist() == [0.0]
+    assert policy.description == "zero input"
+
+
+# ---- 6. a user's model checked like the task -------------------------------------------------
+MODELS = {
+    "a symbol used but not declared": (_undeclared_symbol, ValueError, ["potential uses k"]),
+    "a NaN default": (_nan_default, ValueError, ["Param.default must be finite"]),
+    "a boolean default": (lambda: Param(True, "kg"), TypeError, ["Param.default"]),
+    "a factory that returns no spec": (
+        lambda: dynamics.Model(lambda: 42).spec,
+        TypeError,
+        ["returned int, not a dynamics.ModelSpec"],
+    ),
+    "an operating-point function giving NaN": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_nan_point)),
+        DeclarationError,
+        ["`operating_point`", "NaN or inf"],
+    ),
+    "a goal the operating point needs, unobserved": (
+        lambda: envs.LagrangianEnv(_x_star()),
+        DeclarationError,
+        ["`observation`", "'x*'", "operating point needs"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", MODELS)
+def test_a_user_s_model_slip_is_named_in_one_line(case):
+    make, error, words = MODELS[case]
+    with pytest.raises(error) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+
+
+def test_every_factory_form_builds_the_model():
+    from dynamics.models.bead import bead_on_rotating_rod
+    from envs.plant import _model
+
+    class Holder:
+        make = staticmethod(bead_on_rotating_rod)
+
+    class Factory:
+        def __call__(self):
+            return bead_on_rotating_rod()
+
+    forms = (functools.partial(bead_on_rotating_rod), Holder.__dict__["make"], Factory())
+    for form in forms:
+        assert _model(form).name == "bead_on_rotating_rod"
+
+
+# ---- one vocabulary: every misspelt name gets a suggestion ---------------------------------
+MISSPELT = {
+    "env option": (lambda: _make(ARM, integrater="rk4"), "Did you mean 'integrator'?"),
+    "parameter": (lambda: _make(ARM, mm2=2.0), "Did you mean 'm2'?"),
+    "integrator option": (lambda: _make(ARM, integrator="rk5"), "Did you mean 'rk4'?"),
+    "perturbation key": (lambda: _make(ARM, perturb={"obs_nois": 0.1}), "'obs_noise'?"),
+    "push key": (lambda: _make(ARM, perturb={"push": {"forse": 1.0}}), "'force'?"),
+    "distribution": (
+        lambda: _make(ARM, randomize={"m2": {"dist": "unifrom", "low": 1, "high": 2}}),
+        "Did you mean 'uniform'?",
+    ),
+    "apply": (lambda: envs.Uniform(1, 2, apply="scal"), "Did you mean 'scale'?"),
+    "when": (lambda: envs.Uniform(1, 2, when="rest"), "Did you mean 'reset'?"),
+    "randomised parameter": (lambda: _make(ARM, randomize={"mm2": (1, 2)}), "'m2'?"),
+    "model": (lambda: dynamics.get_model("two_link_armm"), "Did you mean 'two_link_arm'"),
+    "task algorithm": (lambda: dataclasses.replace(BASE, algo="pop"), "Did you mean 'ppo'?"),
+    "task integrator": (
+        lambda: dataclasses.replace(BASE, integrator="rk5"),
+        "Did you mean 'rk4'?",
+    ),
+    "algorithm": (
+        lambda: __import__("agents.hparams").hparams.check_algo_name("sax"),
+        "Did you mean 'sac'?",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", MISSPELT)
+def test_every_misspelt_name_gets_a_suggestion(case):
+    make, words = MISSPELT[case]
+    with pytest.raises(ValueError) as info:
+        make()
+    assert words in str(info.value)
+
+
+def test_one_table_of_algorithms_names_what_agents_train():
+    """A task naming an algorithm agents.train cannot train is refused, not trained as PPO."""
+    from agents.hparams import algorithms
+    from dynamics.checks import ALGORITHMS, INTEGRATORS
+    from dynamics.methods import METHODS
+
+    assert tuple(algorithms()) == ALGORITHMS
+    assert INTEGRATORS == tuple(METHODS)
+    with pytest.raises(DeclarationError, match="algo"):
+        dataclasses.replace(BASE, algo="a2c")
