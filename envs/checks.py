@@ -139,7 +139,7 @@ def _check_goal_observed(plant) -> None:
     """A goal component drawn at reset that the operating point needs (LQR, the heuristics
     and the hand-over regulate to it) must be read back from the observation: refused
     here, rather than when an agent first asks."""
-    missing = plant._goal_from_obs[3]
+    missing = plant.observation.goal_map[3]
     op = plant.task.operating_point
     if not missing or op is None:
         return

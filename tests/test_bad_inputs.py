@@ -136,9 +136,7 @@ def test_a_non_negative_parameter_refuses_a_negative_value_and_range():
         check_parameters("toy", ("mu",), (0.1,), (False,), {"mu": -0.1}, (True,))
     assert check_parameters("toy", ("mu",), (0.1,), (False,), {"mu": 0.0}, (True,)) == [0.0]
     module = types.SimpleNamespace(POSITIVE=(False,), NONNEGATIVE=(True,))
-    system = types.SimpleNamespace(
-        name="toy", parameters={"mu": 0.1}, kernels=lambda: (module, None)
-    )
+    system = types.SimpleNamespace(name="toy", parameters={"mu": 0.1}, kernel_module=module)
     with pytest.raises(ValueError, match="must be non-negative, so low must be >= 0"):
         check_support(system, "mu", (-0.1, 0.2), (-0.1, 0.2))
     check_support(system, "mu", (0.0, 0.2), (0.0, 0.2))
@@ -318,7 +316,7 @@ def test_a_user_s_model_slip_is_named_in_one_line(case):
 
 def test_every_factory_form_builds_the_model():
     from dynamics.models.bead import bead_on_rotating_rod
-    from envs.plant import _model
+    from envs.resolved import _model
 
     class Holder:
         make = staticmethod(bead_on_rotating_rod)
