@@ -20,7 +20,6 @@ and loading (an untimed first episode per agent).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -29,7 +28,8 @@ from pathlib import Path
 
 from envs.checks import Unsupported
 
-from . import hparams, randomization
+from . import hparams, learned, randomization
+from .budget import budget_arg
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -43,8 +43,9 @@ from .common import (
     task_of,
     write_atomic,
 )
-from .evaluate import BASELINES, evaluate, heuristic_of
+from .evaluate import BASELINES, heuristic_of
 from .hparams import ALGOS, load_hyperparams
+from .learned import warm_evaluate
 from .report import (
     Row,
     Training,
@@ -55,33 +56,24 @@ from .report import (
     write_csv,
 )
 from .rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .timing import TIME_FILE as TIME_FILE
+from .timing import record_segment
 from .train import TrainingInterrupted, train
 
-TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
 
-
-def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
-    """(stats, evaluation seconds, warm-up seconds): one episode first, untimed, so that the
-    evaluation's time excludes one-off costs (numba kernels compiled or loaded, LQR's
-    linearisation, a model's loading)."""
-    start = time.perf_counter()
-    evaluate(env_id, agent, 1, seed)
-    warm = time.perf_counter() - start
-    start = time.perf_counter()
-    stats = evaluate(env_id, agent, episodes, seed)
-    return stats, time.perf_counter() - start, warm
-
-
-def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None):
+def train_timed(
+    env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None, seconds=None
+):
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
-    result and the run's `Training` record, whose time is summed over resumed segments."""
+    result and the run's `Training` record, whose time is summed over resumed segments.
+    seconds: a wall-clock budget instead (agents.budget; `budget` is then not used)."""
     found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
     start = found[0] if found else 0
     try:
         result = train(
             env_id,
             algo,
-            timesteps=budget,
+            timesteps=None if seconds else budget,
             seed=seed,
             run_dir=run_dir,
             resume=not fresh,
@@ -89,6 +81,8 @@ def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparam
             progress=progress,
             hyperparams=hyperparams,
             randomize=randomize,
+            budget=seconds,
+            eval_episodes=20 if seconds else 10,
         )
     except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
         record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
@@ -96,19 +90,6 @@ def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparam
     seconds, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
     now = result.wall_s if result.timesteps > start else 0.0
     return result, Training(algo, budget, result.timesteps, seconds, timed, "", now)
-
-
-def record_segment(run_dir: Path, start: int, end: int, seconds: float) -> tuple[float, int]:
-    """Add a training segment (steps start..end in `seconds`) to the run's TIME_FILE,
-    dropping segments past `start` (a fresh run, or steps a resumed checkpoint lost); return
-    the run's training seconds and the steps they cover."""
-    path = run_dir / TIME_FILE
-    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
-    segments = [s for s in segments if s["to"] <= start] if start > 0 else []
-    if end > start:
-        segments.append({"from": start, "to": end, "seconds": round(seconds, 3)})
-    write_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
-    return sum(s["seconds"] for s in segments), sum(s["to"] - s["from"] for s in segments)
 
 
 def check_env(
@@ -124,11 +105,14 @@ def check_env(
     hyperparams: str | Path | None = None,
     report: Path | None = None,
     randomize: dict | None = None,
+    seconds: float | None = None,
+    diagnoses: list | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
     named in the rows relative to `report`, the report's directory; default `out`). The
     agent trains with `randomize` (agents.randomization) if given; every agent is scored
-    on the nominal env."""
+    on the nominal env. seconds: a wall-clock budget (agents.budget) instead of steps;
+    diagnoses: a list the lines of a failed agent's diagnosis are appended to."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
@@ -145,21 +129,31 @@ def check_env(
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
     budget = budget_of(env_id, algo, timesteps, hyperparams)
-    run_dir = run_dir_of(out, env_id, algo, seed, budget, randomization.tag(randomize))
-    log(f"  training {algo.upper()} for {budget:,} steps in {run_dir} ...")
+    tag = randomization.tag(randomize)
+    run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
+    if seconds:
+        run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
+    length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
+    log(f"  training {algo.upper()} {length} in {run_dir} ...")
     result, training = train_timed(
-        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
     )
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
     training = replace(training, run_dir=link)
     stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
-    note = randomization.describe(randomize) if randomize else ""
-    rows.append(Row(env_id, algo, stats, eval_s, note, training, warm_s))
+    alone, lqr_note = learned.alone_rows(env_id, algo, result.model_path, episodes, seed, log)
+    notes = (randomization.describe(randomize) if randomize else "", lqr_note,
+             learned.solved_note(run_dir, seconds))  # fmt: skip
+    rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
     log(
         f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
         f"{training.train_s:.0f} s training)"
     )
-    return rows
+    rate = min(r.stats.success_rate for r in rows[-1:] + alone)  # the agent alone counts
+    lines = learned.diagnosis_lines(env_id, result.model_path, rate, episodes, seed, plans, log)
+    if diagnoses is not None:
+        diagnoses.extend(lines)
+    return rows + alone
 
 
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
@@ -238,10 +232,13 @@ def run_check(
     progress: bool = True,
     hyperparams: str | Path | None = None,
     randomize: dict | None = None,
+    seconds: float | None = None,
 ) -> list[Row]:
     """Check every environment (default: all of `envs.ENV_IDS`); write the report to
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
-    the task's `algo`). randomize: train with randomised parameters (agents.randomization)."""
+    the task's `algo`). randomize: train with randomised parameters (agents.randomization).
+    seconds: train each agent until solved within this wall-clock budget (agents.budget;
+    always a fresh run: a clock cannot be resumed)."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -249,6 +246,7 @@ def run_check(
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given])
+    fresh = fresh or bool(seconds)
     if not fresh:
         check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
@@ -260,15 +258,18 @@ def run_check(
     )
     start = time.perf_counter()
     rows: list[Row] = []
+    diagnoses: list[str] = []
     for i, env_id in enumerate(env_ids, 1):
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
-            report, randomize,
+            report, randomize, seconds, diagnoses,
         )  # fmt: skip
     total = time.perf_counter() - start
-    write_atomic(report / "results.md", report_text(rows, episodes, seed, total))
+    diagnosis = "".join(f"- {line}\n" for line in diagnoses)
+    diagnosis = diagnosis and f"\n## Where the trained agents missed\n\n{diagnosis}"
+    write_atomic(report / "results.md", report_text(rows, episodes, seed, total) + diagnosis)
     write_csv(rows, report / "results.csv")
     plot_comparison(rows, report / "comparison.png")
     print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")
@@ -312,6 +313,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=positive_int,
         help="training budget per env (default: the YAML's n_timesteps); see --fresh for "
         "what a budget other than a run on disk does",
+    )
+    parser.add_argument(
+        "--budget",
+        type=budget_arg,
+        help="train each agent until solved (>= 80 %% evaluated success twice in a row) "
+        "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
+        "instead of --timesteps (agents.budget)",
     )
     parser.add_argument(
         "--out",
@@ -361,6 +369,7 @@ def main(argv: list[str] | None = None) -> int:
             not args.no_progress,
             args.hyperparams,
             randomize,
+            args.budget,
         )
     except UserError as exc:
         fail(parser, exc)

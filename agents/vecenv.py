@@ -159,6 +159,25 @@ def _normalize_kwargs(hp: dict) -> dict | None:
     return dict(normalize)
 
 
+def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
+    """`venv` with the reward scale and LQR shaping the hyperparameters ask for
+    (agents.shaping; the registered reward is untouched), or `venv` itself."""
+    from .common import task_of
+    from .defaults import episode_steps
+    from .shaping import TaskRewardVecEnv, lqr_potential
+
+    scale = float(hp.get("reward_scale", 1.0))
+    weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
+    if scale == 1.0 and not weight:
+        return venv
+    gamma = float(hp.get("gamma", 0.99))
+    potential = None
+    if weight:
+        horizon = episode_steps(env_id, task_of(env_id))
+        potential = lqr_potential(env_id, weight, gamma, horizon)
+    return TaskRewardVecEnv(venv, scale, potential, gamma)
+
+
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):
     """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks. With
     the hyperparameter `randomize` (agents.randomization) both draw their physical
@@ -169,6 +188,11 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
     kwargs = env_kwargs(env_id, hp.get("randomize"))
     train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization, kwargs)
     eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization, kwargs)
+    train_env = task_reward(train_env, env_id, hp)
+    if train_env.__class__.__name__ == "TaskRewardVecEnv":  # SB3 syncs the statistics
+        from .shaping import TaskRewardVecEnv  # through wrappers of the same depth
+
+        eval_env = TaskRewardVecEnv(eval_env)  # the env's own rewards
     handover = handover_options(hp.get("handover"))
     if handover is not None:  # the agent learns in the closed loop it will act in
         gamma = float(hp.get("gamma", 0.99))

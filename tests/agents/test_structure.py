@@ -65,12 +65,6 @@ def test_old_import_paths_still_work_with_a_deprecation_warning():
         with pytest.warns(DeprecationWarning, match=f"agents.{name} is deprecated"):
             module = importlib.import_module(f"agents.{name}")
         assert callable(module.main)
-    import agents.train
-
-    with pytest.warns(DeprecationWarning, match="moved to agents.rundir"):
-        assert callable(agents.train.latest_checkpoint)
-    with pytest.warns(DeprecationWarning, match="agents.hparams.algorithms"):
-        assert set(agents.train.ALGORITHMS) == {"ppo", "sac", "td3"}
     from agents.lqr import LQRPolicy  # the library's names, from the program's module too
     from agents.plan import plan, plan_options  # noqa: F401
 
