@@ -113,10 +113,11 @@ class SolvedStop(BaseCallback):
     the success rate has been at least `rate` at `times` evaluations in a row (recording
     the time and steps in solved.json). `clock` gives the training's elapsed seconds."""
 
-    def __init__(self, run_dir: Path, clock: Clock, rate=SOLVED_RATE, times=SOLVED_TIMES):
+    def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None):
         super().__init__()
         self.run_dir, self.clock = Path(run_dir), clock
-        self.rate, self.times = float(rate), int(times)
+        self.rate = float(SOLVED_RATE if rate is None else rate)
+        self.times = int(SOLVED_TIMES if times is None else times)
         self.streak = 0
         self.best: tuple[float, float] | None = None
         self.solved: dict | None = None

@@ -161,11 +161,15 @@ def _normalize_kwargs(hp: dict) -> dict | None:
 
 def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
     """`venv` with the reward scale and LQR shaping the hyperparameters ask for
-    (agents.shaping; the registered reward is untouched), or `venv` itself."""
+    (agents.shaping; the registered reward is untouched), or `venv` itself. Warns first
+    when the task's reward is flat inside the tolerance of its success set (agents.diagnosis)."""
     from .common import task_of
     from .defaults import episode_steps
+    from .diagnosis import warn_if_flat
     from .shaping import TaskRewardVecEnv, lqr_potential
 
+    if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
+        warn_if_flat(env_id)
     scale = float(hp.get("reward_scale", 1.0))
     weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
     if scale == 1.0 and not weight:
