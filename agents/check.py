@@ -28,6 +28,7 @@ from pathlib import Path
 
 from envs.checks import Unsupported
 
+from . import evaluate as programs
 from . import hparams, learned, randomization
 from .budget import budget_arg
 from .common import (
@@ -44,8 +45,8 @@ from .common import (
     write_atomic,
 )
 from .evaluate import BASELINES, heuristic_of
+from .fingerprint import check_fingerprint
 from .hparams import ALGOS, load_hyperparams
-from .learned import warm_evaluate
 from .report import (
     Row,
     Training,
@@ -121,7 +122,9 @@ def check_env(
         if (name == "heuristic" and heuristic is None) or (name == "plan" and not plans):
             continue
         try:
-            stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
+            stats, eval_s, warm_s = learned.warm_evaluate(
+                programs.evaluate, env_id, name, episodes, seed
+            )
         except Unsupported as exc:  # it would be wrong here, and says why
             log(f"  {name:>9}: refused: {exc}")
             continue
@@ -140,17 +143,18 @@ def check_env(
     )
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
     training = replace(training, run_dir=link)
-    stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
-    alone, lqr_note = learned.alone_rows(env_id, algo, result.model_path, episodes, seed, log)
+    model, score = result.model_path, programs.evaluate
+    stats, eval_s, warm_s = learned.warm_evaluate(score, env_id, str(model), episodes, seed)
+    alone, lqr_note, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
     notes = (randomization.describe(randomize) if randomize else "", lqr_note,
-             learned.solved_note(run_dir, seconds))  # fmt: skip
+             learned.solved_note(run_dir, seconds), learned.resumed_note(run_dir))  # fmt: skip
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
     log(
         f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
         f"{training.train_s:.0f} s training)"
     )
     rate = min(r.stats.success_rate for r in rows[-1:] + alone)  # the agent alone counts
-    lines = learned.diagnosis_lines(env_id, result.model_path, rate, episodes, seed, plans, log)
+    lines = learned.diagnosis_lines(programs, env_id, model, rate, episodes, seed, plans, log)
     if diagnoses is not None:
         diagnoses.extend(lines)
     return rows + alone
@@ -174,6 +178,7 @@ def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomi
             hp["randomize"] = randomize
         run_dir = run_dir_of(out, env_id, name, seed, budget, randomization.tag(randomize))
         check_earlier_run(run_dir, budget, hp)
+        check_fingerprint(run_dir, env_id)
 
 
 def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:

@@ -147,11 +147,12 @@ class Ends:
     lqr_share: float | None  # share of steps LQR acted (hand-over agents), else None
 
 
-def rollout_ends(env_id: str, agent, episodes: int, seed: int, edges: Edges, name: str) -> Ends:
-    """Run `agent` (a name or a path, as agents.evaluate takes) from seeds seed.. and
-    collect where its episodes end, in units of the success edges."""
+def rollout_ends(make_agent, env_id: str, agent, episodes: int, seed: int, edges: Edges,
+                 name: str) -> Ends:  # fmt: skip
+    """Run `agent` (a name or a path, built by `make_agent(name, venv, seed)`, as
+    agents.evaluate's) from seeds seed.. and collect where its episodes end, in units of
+    the success edges."""
     from .episodes import EvalStats
-    from .evaluate import make_agent
 
     venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
     try:
@@ -218,16 +219,17 @@ def describe_ends(ends: Ends) -> str:
     return f"{ends.agent}: " + "; ".join(parts)
 
 
-def diagnose(env_id: str, agent, episodes: int = 20, seed: int = 0, name: str = "agent",
-             compare: tuple[str, ...] = ("lqr",)) -> list[str]:  # fmt: skip
+def diagnose(make_agent, env_id: str, agent, episodes: int = 20, seed: int = 0,
+             compare: tuple[str, ...] = ("lqr",), name: str = "trained") -> list[str]:  # fmt: skip
     """Lines saying where `agent`'s episodes ended, beside the agents in `compare` (LQR,
     the plan) from the same starts; an agent that cannot run here (LQR on a time-varying
-    system) is left out with its reason."""
+    system) is left out with its reason. make_agent: agents.evaluate.make_agent."""
     edges = success_edges(env_id, seed)
-    lines = [describe_ends(rollout_ends(env_id, agent, episodes, seed, edges, name))]
+    run = lambda a, label: rollout_ends(make_agent, env_id, a, episodes, seed, edges, label)  # noqa: E731
+    lines = [describe_ends(run(agent, name))]
     for other in compare:
         try:
-            lines.append(describe_ends(rollout_ends(env_id, other, episodes, seed, edges, other)))
+            lines.append(describe_ends(run(other, other)))
         except Exception as exc:  # Unsupported, a planner failing: say so
             lines.append(f"{other}: not run ({' '.join(str(exc).split())[:120]})")
     flat = flat_components(edges, rates=True)

@@ -22,12 +22,10 @@ from .budget import SOLVED_RATE
 from .common import env_slug
 
 
-def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
-    """(stats, evaluation seconds, warm-up seconds): one episode first, untimed, so that the
-    evaluation's time excludes one-off costs (numba kernels compiled or loaded, LQR's
-    linearisation, a model's loading)."""
-    from .evaluate import evaluate
-
+def warm_evaluate(evaluate, env_id: str, agent: str, episodes: int, seed: int):
+    """(stats, evaluation seconds, warm-up seconds) of `evaluate` (agents.evaluate's): one
+    episode first, untimed, so that the evaluation's time excludes one-off costs (numba
+    kernels compiled or loaded, LQR's linearisation, a model's loading)."""
     start = time.perf_counter()
     evaluate(env_id, agent, 1, seed)
     warm = time.perf_counter() - start
@@ -54,45 +52,63 @@ def solved_note(run_dir: Path, seconds: float | None) -> str:
     return f"solved after {solved['seconds']:.0f} s, {solved['timesteps']:,} steps"
 
 
-def alone_rows(env_id, algo, model_path, episodes, seed, log):
-    """(rows, note): for a hand-over run, the agent scored alone, and the note for the
-    hand-over row (the share of LQR's steps and the starts inside its set)."""
+def resumed_note(run_dir: Path) -> str:
+    """A note when the run was trained in several segments: a resumed run restarts its
+    episodes and random streams at the checkpoint, so it is not the agent one uninterrupted
+    run of the same seed trains (measured: 512 + 512 PPO steps on the bead differ from 1024
+    by up to 0.012 in a weight), and its numbers are not repeatable as one command's."""
+    import json
+
+    from .timing import TIME_FILE
+
+    path = Path(run_dir) / TIME_FILE
+    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
+    if len(segments) < 2:
+        return ""
+    return f"resumed ({len(segments)} segments: not one uninterrupted run's agent)"
+
+
+def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
+    """(rows, note, share): for a hand-over run, the agent scored alone, the note for the
+    hand-over row and the share of steps LQR acted (otherwise [], "", None). programs:
+    agents.evaluate (its `make_agent` and `evaluate`; a library imports no program)."""
     import gymnasium as gym
 
     from .episodes import run_episodes
-    from .evaluate import evaluate, make_agent
     from .policies import SB3Policy
     from .report import Row
 
     venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
     try:
-        policy = make_agent(str(model_path), venv, seed)
+        policy = programs.make_agent(str(model_path), venv, seed)
         capture = getattr(policy, "capture", None)
         if capture is None:
-            return [], ""
+            return [], "", None
         obs, _ = venv.reset(seed=seed)
         inside = int(capture.split(obs)[3].sum())
         run_episodes(venv, policy, obs)
         share = policy.lqr_steps / max(policy.steps, 1)
     finally:
         venv.close()
-    alone = evaluate(env_id, SB3Policy.load(model_path), episodes, seed)
+    alone = programs.evaluate(env_id, SB3Policy.load(model_path), episodes, seed)
     name = f"{algo} alone"
     log(f"  {name:>9}: {alone.summary()}")
     note = (f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside "
             "its set")  # fmt: skip
-    return [Row(env_id, name, alone, 0.0, "the trained agent without the LQR hand-over")], note
+    row = Row(env_id, name, alone, 0.0, "the trained agent without the LQR hand-over")
+    return [row], note, share
 
 
-def diagnosis_lines(env_id, agent_path, success_rate, episodes, seed, plans, log) -> list[str]:
-    """The diagnosis of a trained agent below `SOLVED_RATE` (else nothing)."""
+def diagnosis_lines(programs, env_id, agent_path, rate, episodes, seed, plans, log) -> list[str]:
+    """The diagnosis of a trained agent below `SOLVED_RATE` (else nothing); programs:
+    agents.evaluate (its `make_agent`)."""
     from .diagnosis import diagnose
 
-    if success_rate >= SOLVED_RATE or not np.isfinite(success_rate):
+    if rate >= SOLVED_RATE or not np.isfinite(rate):
         return []
     compare = ("lqr", "plan") if plans else ("lqr",)
     try:
-        lines = diagnose(env_id, str(agent_path), episodes, seed, "trained", compare)
+        lines = diagnose(programs.make_agent, env_id, str(agent_path), episodes, seed, compare)
     except Exception as exc:  # the diagnosis must never lose the report
         lines = [f"diagnosis not available: {' '.join(str(exc).split())[:160]}"]
     for line in lines:

@@ -52,6 +52,7 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
+from .fingerprint import task_fingerprint
 from .hparams import ALGOS, check_entries, load_hyperparams
 from .rundir import (
     default_run_dir,
@@ -156,6 +157,7 @@ def train(
             "vectorization": vectorization,
             "hyperparams_file": None if hyperparams is None else str(hyperparams),
             "hyperparams": hp,
+            "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
         if env_options:  # what the setting meant for this env: absolute ranges, model units
