@@ -90,7 +90,8 @@ def train_timed(
         raise
     seconds, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
     now = result.wall_s if result.timesteps > start else 0.0
-    return result, Training(algo, budget, result.timesteps, seconds, timed, "", now)
+    shown = result.timesteps if seconds else budget  # a time budget: the steps it took
+    return result, Training(algo, shown, result.timesteps, seconds, timed, "", now)
 
 
 def check_env(
