@@ -16,7 +16,10 @@ What a task declares sets up its learner (`derived`):
 - **shaping**: potential-based shaping from LQR's cost-to-go about the operating point
   (`agents.shaping`, Ng, Harada and Russell 1999), on wherever LQR can be designed:
   F = gamma Phi(s') - Phi(s) leaves the optimal policy unchanged and gives a reward that
-  is flat near the goal a slope to follow.
+  is flat near the goal a slope to follow. Not derived where the operating point is a
+  function of the state (the rolling disk's follows its heading): there the potential needs
+  the operating point and its LQR design row by row, milliseconds per step (a task or YAML
+  may still ask for it with `shaping: {lqr: W}`).
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
@@ -79,7 +82,8 @@ def derived(env_id: str, task) -> dict:
     span = reward_span(task, env_id)
     if task.terms and span > 0:
         out["reward_scale"] = float(f"{1.0 / span:.6g}")
-    out["shaping"] = {"lqr": SHAPING_WEIGHT}
+    if not callable(task.operating_point):
+        out["shaping"] = {"lqr": SHAPING_WEIGHT}
     return out
 
 
