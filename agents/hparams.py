@@ -307,13 +307,14 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
 
 
 def derived_for(env_id: str, task, own: dict) -> dict:
-    """agents.defaults.derived, without the LQR shaping where the task hands over to LQR
-    (its hand-over carries its own energy shaping, agents.handover)."""
+    """agents.defaults.derived, without the LQR shaping where the task declares settings of
+    its own for the algorithm (they were measured without it; the built-in tasks' budgets)
+    or hands over to LQR (its hand-over carries its own energy shaping, agents.handover)."""
     from .defaults import derived
 
     out = derived(env_id, task)
-    if "handover" in own:
-        out.pop("shaping")
+    if own:
+        out.pop("shaping", None)
     return out
 
 

@@ -48,10 +48,12 @@ def test_derived_values_sit_between_the_yaml_default_and_the_task():
     acro = hparams.load("ppo", ACROBOT)
     assert acro["gamma"] == 0.998  # the task's own value overrides the derived one
     assert "handover" in acro and acro.get("shaping") is None  # hand-over: its own shaping
+    bead = hparams.load("ppo", BEAD)  # declares its budget, measured without shaping
+    assert bead.get("shaping") is None and bead["gamma"] == pytest.approx(0.975)
 
 
 def test_shaping_off_and_on_in_the_training_env():
-    hp = hparams.load("ppo", BEAD)
+    hp = {**hparams.load("ppo", BEAD), "shaping": {"lqr": 0.5}}
     train, evaluation = make_envs(BEAD, {**hp, "normalize": False}, 2, 0, "auto", 1)
     assert isinstance(train, TaskRewardVecEnv) and train.potential is not None
     assert isinstance(evaluation, TaskRewardVecEnv) and evaluation.potential is None
@@ -64,7 +66,7 @@ def test_shaping_off_and_on_in_the_training_env():
 
 
 def test_shaped_reward_is_the_potential_difference():
-    hp = {**hparams.load("ppo", BEAD), "normalize": False}
+    hp = {**hparams.load("ppo", BEAD), "normalize": False, "shaping": {"lqr": 0.5}}
     shaped, _ = make_envs(BEAD, hp, 2, 0, "auto", 1)
     plain, _ = make_envs(BEAD, {**hp, "shaping": {"lqr": 0.0}}, 2, 0, "auto", 1)
     phi, gamma, scale = shaped.potential, shaped.gamma, shaped.scale
