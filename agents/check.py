@@ -44,6 +44,7 @@ from .common import (
     task_of,
     write_atomic,
 )
+from .defaults import describe
 from .evaluate import BASELINES, heuristic_of
 from .fingerprint import check_fingerprint
 from .hparams import ALGOS, load_hyperparams
@@ -140,6 +141,7 @@ def check_env(
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
     length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
     log(f"  training {algo.upper()} {length} in {run_dir} ...")
+    log(f"  ({describe(load_hyperparams(algo, env_id, hyperparams))}; agents.defaults)")
     result, training = train_timed(
         env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
     )
