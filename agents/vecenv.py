@@ -192,11 +192,6 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
     kwargs = env_kwargs(env_id, hp.get("randomize"))
     train_env = make_sb3_vec_env(env_id, n_envs, seed, vectorization, kwargs)
     eval_env = make_sb3_vec_env(env_id, eval_envs, seed + 10_000, vectorization, kwargs)
-    train_env = task_reward(train_env, env_id, hp)
-    if train_env.__class__.__name__ == "TaskRewardVecEnv":  # SB3 syncs the statistics
-        from .shaping import TaskRewardVecEnv  # through wrappers of the same depth
-
-        eval_env = TaskRewardVecEnv(eval_env)  # the env's own rewards
     handover = handover_options(hp.get("handover"))
     if handover is not None:  # the agent learns in the closed loop it will act in
         gamma = float(hp.get("gamma", 0.99))
@@ -205,6 +200,12 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
         check = {k: handover[k] for k in ("verify", "verify_level")}
         train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
         eval_env = HandOverVecEnv(eval_env, handover["level"], **check)
+    # the scale applies to everything the agent is paid, the hand-over's shaping included
+    train_env = task_reward(train_env, env_id, hp)
+    if train_env.__class__.__name__ == "TaskRewardVecEnv":  # SB3 syncs the statistics
+        from .shaping import TaskRewardVecEnv  # through wrappers of the same depth
+
+        eval_env = TaskRewardVecEnv(eval_env)  # the env's own rewards
     norm = _normalize_kwargs(hp)
     if norm is not None:
         train_env = VecNormalize(train_env, **norm)
