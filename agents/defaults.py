@@ -33,6 +33,8 @@ user's file: a task's author and the user still override every derived value.
 
 from __future__ import annotations
 
+import functools
+
 import gymnasium as gym
 
 TAU_FRACTION = 0.2
@@ -66,6 +68,12 @@ def reward_span(task, env_id: str | None = None) -> float:
         return float(sum(float(t.high) - float(t.low) for t in task.terms))
     if env_id is None:
         raise ValueError(f"Task {task.name!r} has reward bounds that name parameters.")
+    return _span_of_env(env_id, task.name)
+
+
+@functools.lru_cache(maxsize=64)
+def _span_of_env(env_id: str, name: str) -> float:
+    """The resolved bounds' span, from the made env (once per env id and task name)."""
     env = gym.make(env_id)
     try:
         plant = env.unwrapped.plant
