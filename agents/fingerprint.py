@@ -55,6 +55,7 @@ def check_fingerprint(run_dir: Path, env_id: str) -> None:
     if now is not None and then != now:
         raise UserError(
             f"{run_dir} holds a run trained on another declaration of {env_id} (task "
-            f"fingerprint {then} in the run, {now} now: its rewards, success, dynamics or "
-            "start changed since); pass --fresh to retrain it, or --out DIR to keep it."
+            f"fingerprint {then or 'none recorded'} in the run, {now} now: the task's "
+            "declaration changed since, or the run predates fingerprints); pass --fresh to "
+            "retrain it, or --out DIR to keep it."
         )
