@@ -12,8 +12,9 @@ def task_fingerprint(env_id: str) -> str | None:
     """A hash of what the env's registration declares (the task's fields, with the source
     of its functions and of a model factory, and the registry's other options), or None
     for an env that is not a Lagrange env. A run records it in config.yml; `agents.check`
-    refuses to resume or reuse a run recorded with another (the README's Furuta number
-    came from such a run: trained on an earlier declaration, reused by later jobs)."""
+    refuses to resume or reuse a run recorded with another (the likeliest source of the
+    README's former Furuta "PPO 90 %", which the commit that wrote it does not give on a
+    fresh clone: a run on disk whose hyperparameters matched, reused)."""
     import dataclasses
     import hashlib
     import inspect
