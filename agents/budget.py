@@ -122,6 +122,11 @@ class SolvedStop(BaseCallback):
         self.best: tuple[float, float] | None = None
         self.solved: dict | None = None
 
+    def _init_callback(self) -> None:
+        if self.model.num_timesteps == 0:  # a fresh run: nothing of an earlier one counts
+            (self.run_dir / "solved.json").unlink(missing_ok=True)
+            shutil.rmtree(self.run_dir / "best", ignore_errors=True)
+
     def _on_step(self) -> bool:
         parent = self.parent
         successes = parent._is_success_buffer
