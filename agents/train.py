@@ -385,8 +385,9 @@ def main(argv: list[str] | None = None) -> int:
         if result.eval_mean is None
         else f"last evaluation {result.eval_mean:.1f} (sd {result.eval_std:.1f}){rate}"
     )
-    solved = result.solved or {}
-    when = solved and f" Solved after {solved['seconds']:.0f} s, {solved['timesteps']} steps."
+    solved, when = result.solved, ""
+    if solved:
+        when = f" Solved after {solved['seconds']:.0f} s, {solved['timesteps']} steps."
     print(
         f"{args.algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "
         f"{evaluation}.{when} Model: {result.model_path}"
