@@ -29,9 +29,9 @@ import gymnasium as gym
 import numpy as np
 
 from dynamics import wrap
-from envs.plant import state_names
 
 from .common import lagrange_env, task_of
+from .linear import state_names
 
 FLAT = 1e-3
 """A coordinate is flat when one step just outside the success set loses less than this
