@@ -52,14 +52,16 @@ def example_systems() -> tuple[list[str], list[str]]:
 
     ids, skipped = [], []
     for info in pkgutil.iter_modules(examples.__path__):
-        before = set(gym.registry)
         name = f"examples.{info.name}"
         try:
-            importlib.import_module(name)
+            module = importlib.import_module(name)
         except Exception as exc:  # an optional dependency missing: say so, go on
             skipped.append(f"{name}: {type(exc).__name__}: {str(exc)[:80]}")
             continue
-        ids += [f"{name}:{e}" for e in sorted(set(gym.registry) - before)]
+        # the ids whose task is one of the module's own (imported earlier or now)
+        tasks = {id(v) for v in vars(module).values()}
+        ids += [f"{name}:{e}" for e, spec in sorted(gym.registry.items())
+                if id(spec.kwargs.get("task")) in tasks]  # fmt: skip
     return ids, skipped
 
 
