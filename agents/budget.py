@@ -3,7 +3,8 @@
 `--budget 10m` (also `600`, `90s`, `1.5h`) trains until the evaluated success holds or the
 time is spent, whichever comes first. The rule (`SOLVED_RATE`, `SOLVED_TIMES`): the
 evaluation during training (`--eval-episodes`, 20 in this mode, on starts the training
-never sees) reaches at least 80 % success at two evaluations in a row. Every evaluation
+never sees, every `budget_eval_freq` steps) reaches at least 80 % success at two
+evaluations in a row. Every evaluation
 that beats the best so far (success rate, then mean return) saves the model, its
 normalisation statistics and config.yml into `best/` of the run directory, each file
 atomically; at the end the run's model.zip is the best one (`best/` keeps it too), and
@@ -59,6 +60,15 @@ def budget_arg(text: str) -> float:
         return parse_budget(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def budget_eval_freq(total: int, declared: int, budget: float | None) -> int:
+    """Env steps between evaluations: a tenth of the run (at least 2,000); with a time
+    budget, a thirtieth of the declared n_timesteps, at least 10,000 (the acrobot's 3M-step
+    budget would otherwise evaluate first at 300k steps, past a 300 s budget here)."""
+    if budget is None:
+        return max(min(total, declared) // 10, 2000)
+    return max(declared // 30, 10_000)
 
 
 def constant_schedules(hp: dict) -> dict:

@@ -149,7 +149,7 @@ def check_env(
     training = replace(training, run_dir=link)
     model, score = result.model_path, programs.evaluate
     stats, eval_s, warm_s = learned.warm_evaluate(score, env_id, str(model), episodes, seed)
-    alone, lqr_note, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
+    alone, lqr_note, _, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
     notes = (randomization.describe(randomize) if randomize else "", lqr_note,
              learned.solved_note(run_dir, seconds), learned.resumed_note(run_dir))  # fmt: skip
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))

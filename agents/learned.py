@@ -69,8 +69,9 @@ def resumed_note(run_dir: Path) -> str:
 
 
 def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
-    """(rows, note, share): for a hand-over run, the agent scored alone, the note for the
-    hand-over row and the share of steps LQR acted (otherwise [], "", None). programs:
+    """(rows, note, share, inside): for a hand-over run, the agent scored alone, the note for
+    the hand-over row, the share of steps LQR acted and how many starts lay inside LQR's
+    set (otherwise [], "", None, 0). programs:
     agents.evaluate (its `make_agent` and `evaluate`; a library imports no program)."""
     import gymnasium as gym
 
@@ -83,7 +84,7 @@ def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
         policy = programs.make_agent(str(model_path), venv, seed)
         capture = getattr(policy, "capture", None)
         if capture is None:
-            return [], "", None
+            return [], "", None, 0
         obs, _ = venv.reset(seed=seed)
         inside = int(capture.split(obs)[3].sum())
         run_episodes(venv, policy, obs)
@@ -96,7 +97,7 @@ def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
     note = (f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside "
             "its set")  # fmt: skip
     row = Row(env_id, name, alone, 0.0, "the trained agent without the LQR hand-over")
-    return [row], note, share
+    return [row], note, share, inside
 
 
 def diagnosis_lines(programs, env_id, agent_path, rate, episodes, seed, plans, log) -> list[str]:

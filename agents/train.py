@@ -29,9 +29,8 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
+from . import budget as budgets
 from . import randomization
-from .budget import BUDGET_STEPS_CAP, AfterEvals, Clock, SolvedStop, budget_arg, publish_best
-from .budget import constant_schedules as constant_schedules
 from .callbacks import (
     AtomicCheckpoint,
     EvaluationStopped,
@@ -115,10 +114,11 @@ def train(
     timesteps, n_envs: override the YAML's n_timesteps / n_envs. hyperparams: a YAML file
     in the format of agents/hyperparams/<algo>.yml whose entries override the packaged ones.
     eval_freq and checkpoint_freq count environment steps over the whole run (default:
-    total/10 but at least 2000, and total/5). A directory holding an earlier run needs
-    `resume` (continue from its newest checkpoint) or `overwrite` (delete it, start afresh);
-    an off-policy checkpoint without its replay buffer is refused unless
-    `allow_missing_buffer` (the run then goes on with an empty buffer). randomize: the
+    total/10 but at least 2000, and total/5; with `budget`, agents.budget's schedule). A
+    directory holding an earlier run needs `resume` (continue from its newest checkpoint)
+    or `overwrite` (delete it, start afresh); an off-policy checkpoint without its replay
+    buffer is refused unless `allow_missing_buffer` (the run then goes on with an empty
+    buffer). randomize: the
     hyperparameter `randomize` (agents.randomization, e.g. {"inertial": 0.25}) overriding
     the YAML's; a resumed run without it keeps the one its config.yml records. budget:
     wall-clock seconds; train until solved or out of time (agents.budget), `timesteps`
@@ -130,7 +130,7 @@ def train(
     env_id = check_env_id(env_id)
     hp = load_hyperparams(algo, env_id, hyperparams)
     if budget is not None and timesteps is None:  # the clock or success stops it
-        timesteps, hp = BUDGET_STEPS_CAP, constant_schedules(hp)
+        timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
     n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
     for name, value in (("timesteps", total), ("n_envs", n_envs), ("eval_episodes", eval_episodes)):
@@ -166,7 +166,7 @@ def train(
             }
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
-            eval_freq=eval_freq or max(min(total, hp["n_timesteps"]) // 10, 2000),
+            eval_freq=eval_freq or budgets.budget_eval_freq(total, hp["n_timesteps"], budget),
             eval_episodes=eval_episodes,
             checkpoint_freq=checkpoint_freq or max(total // 5, 1),
             progress=progress,
@@ -189,15 +189,15 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
-        clock = Clock(o["budget"] or float("inf"))
-        solved = SolvedStop(run_dir, clock) if o["budget"] else None
+        clock = budgets.Clock(o["budget"] or float("inf"))
+        solved = budgets.SolvedStop(run_dir, clock) if o["budget"] else None
         evaluation = ScheduledEval(
             eval_env,
             o["eval_freq"],
             stop,
             n_eval_episodes=o["eval_episodes"],
             deterministic=True,
-            callback_after_eval=AfterEvals(curves.after_eval, *[solved] * bool(solved)),
+            callback_after_eval=budgets.AfterEvals(curves.after_eval, *[solved] * bool(solved)),
             log_path=str(curves.staging_dir),
             verbose=0,
         )
@@ -217,7 +217,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
                 checkpoint.save()
             model_path = save_final(model, run_dir)
             if solved is not None and solved.best is not None:  # the best evaluated, kept
-                publish_best(run_dir)
+                budgets.publish_best(run_dir)
             curves.close()
         wall = time.perf_counter() - start
     finally:
@@ -276,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--timesteps", type=positive_int, help="budget (default: YAML n_timesteps)")
     parser.add_argument(
         "--budget",
-        type=budget_arg,
+        type=budgets.budget_arg,
         help="wall-clock budget (600, 90s, 10m, 1.5h): train until the evaluated success "
         "holds (>= 80 %% at 2 evaluations in a row) or the time is spent; keeps the best "
         "model (agents.budget). Not repeatable: use --timesteps for that",

@@ -13,7 +13,8 @@ n_timesteps / 10 steps, stop at >= 80 % twice in a row, the best model kept. The
 model is then scored on 20 seeded episodes (seeds 0..19, as `agents.check`): success with
 Wilson's 95 % interval. The columns "to 80 %" give the training seconds and env-steps at
 which the rule was met (blank: not within the budget). A run that hands over to LQR is
-also scored alone, and the row says so with the share of steps LQR acted.
+also scored alone: where a start lies inside LQR's set the agent alone is counted, else
+the hand-over, and the row gives the other score and the share of steps LQR acted.
 
 Writes OUT/results.md (the table) and OUT/results.csv, atomically, after every run (an
 interrupted benchmark keeps what it measured). Run it with `nice` on a shared machine: each
@@ -82,10 +83,13 @@ def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dic
                    eval_episodes=20, budget=seconds)  # fmt: skip
     stats = programs.evaluate(env_id, str(result.model_path), 20, 0)
     quiet = lambda _: None  # noqa: E731
-    alone, note, share = alone_rows(programs, env_id, algo, result.model_path, 20, 0, quiet)
-    if alone:  # the agent's own success counts; the hand-over's share of LQR steps noted
+    alone, note, share, inside = alone_rows(programs, env_id, algo, result.model_path, 20, 0,
+                                            quiet)  # fmt: skip
+    if alone and inside:  # a start inside LQR's set: the agent's own success counts
         note = f"with hand-over {stats.success_rate:.0%}; {note}"
         stats = alone[0].stats
+    elif alone:  # every start outside it: the hand-over's, beside the agent alone
+        note = f"agent alone {alone[0].stats.success_rate:.0%}; {note}"
     k, n = int(stats.successes.sum()), len(stats.successes)
     interval = wilson_interval(k, n)
     solved = result.solved or {}
