@@ -19,6 +19,7 @@ from agents.fingerprint import check_fingerprint, task_fingerprint
 FURUTA = "Examples/Furuta-v0"
 
 
+@pytest.mark.slow  # three rollouts of four 500-step episodes, about 10 s
 def test_the_zero_agent_falls_and_lqr_holds_from_the_same_starts():
     edges = success_edges(FURUTA)
     zero = rollout_ends(make_agent, FURUTA, "zero", 4, 0, edges, "zero")
