@@ -7,7 +7,8 @@ never sees, every `budget_eval_freq` steps) reaches at least 80 % success at two
 evaluations in a row. Every evaluation
 that beats the best so far (success rate, then mean return) saves the model, its
 normalisation statistics and config.yml into `best/` of the run directory, each file
-atomically; at the end the run's model.zip is the best one (`best/` keeps it too), and
+atomically; at the end the final model is evaluated too (unless it just was), the run's
+model.zip is the best one (`best/` keeps it too), and
 `solved.json` records the seconds and env steps to success.
 
 Without `--timesteps` a budget run has no step count to decay a schedule over, so
@@ -171,6 +172,20 @@ class SolvedStop(BaseCallback):
         record = {"timesteps": int(self.num_timesteps), "success_rate": self.best[0],
                   "mean_return": self.best[1]}  # fmt: skip
         write_atomic(best / "best.json", json.dumps(record, indent=1) + "\n")
+
+
+def keep_best(evaluation, solved: SolvedStop, run_dir: Path) -> None:
+    """At the end of a budget run: evaluate the final model unless the last evaluation was
+    of it (the last steps may have learnt the most; this evaluation comes after the clock),
+    then make the best evaluated model the run's model.zip."""
+    from stable_baselines3.common.callbacks import EvalCallback
+
+    model = evaluation.model
+    if solved.solved is None and evaluation.evaluations_timesteps[-1:] != [model.num_timesteps]:
+        evaluation.num_timesteps = model.num_timesteps
+        EvalCallback._on_step(evaluation)  # records it and offers it to `solved` as best
+    if solved.best is not None:
+        publish_best(run_dir)
 
 
 def publish_best(run_dir: Path) -> bool:

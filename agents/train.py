@@ -216,8 +216,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
             if learning:
                 checkpoint.save()
             model_path = save_final(model, run_dir)
-            if solved is not None and solved.best is not None:  # the best evaluated, kept
-                budgets.publish_best(run_dir)
+            if solved is not None and stop.signum is None:  # the best evaluated, kept
+                budgets.keep_best(evaluation, solved, run_dir)
             curves.close()
         wall = time.perf_counter() - start
     finally:

@@ -58,6 +58,11 @@ def test_a_budget_run_stops_when_the_time_is_spent(tmp_path):
     assert result.solved is None
     assert 0 < result.timesteps < budget.BUDGET_STEPS_CAP
     assert result.wall_s < 60  # one rollout past the clock at most, plus saving
+    # the final model was evaluated after the clock, and the best evaluated one kept
+    evaluated = [int(r.split(",")[0]) for r in (tmp_path / "eval.csv").read_text().split()[1:]]
+    assert evaluated[-1] == result.timesteps
+    best = json.loads((tmp_path / "best" / "best.json").read_text())
+    assert best["timesteps"] in evaluated
 
 
 def test_cli_takes_a_budget_and_says_so(tmp_path, capsys):
