@@ -20,7 +20,6 @@ and loading (an untimed first episode per agent).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -29,7 +28,9 @@ from pathlib import Path
 
 from envs.checks import Unsupported
 
-from . import hparams, randomization
+from . import evaluate as programs
+from . import hparams, learned, randomization
+from .budget import budget_arg
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -43,7 +44,9 @@ from .common import (
     task_of,
     write_atomic,
 )
-from .evaluate import BASELINES, evaluate, heuristic_of
+from .defaults import describe
+from .evaluate import BASELINES, heuristic_of
+from .fingerprint import check_fingerprint
 from .hparams import ALGOS, load_hyperparams
 from .report import (
     Row,
@@ -51,37 +54,29 @@ from .report import (
     findings,
     markdown_table,
     plot_comparison,
+    report_text,
     training_lines,
     write_csv,
 )
 from .rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .timing import TIME_FILE as TIME_FILE
+from .timing import record_segment
 from .train import TrainingInterrupted, train
 
-TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
 
-
-def warm_evaluate(env_id: str, agent: str, episodes: int, seed: int):
-    """(stats, evaluation seconds, warm-up seconds): one episode first, untimed, so that the
-    evaluation's time excludes one-off costs (numba kernels compiled or loaded, LQR's
-    linearisation, a model's loading)."""
-    start = time.perf_counter()
-    evaluate(env_id, agent, 1, seed)
-    warm = time.perf_counter() - start
-    start = time.perf_counter()
-    stats = evaluate(env_id, agent, episodes, seed)
-    return stats, time.perf_counter() - start, warm
-
-
-def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None):
+def train_timed(
+    env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None, seconds=None
+):
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
-    result and the run's `Training` record, whose time is summed over resumed segments."""
+    result and the run's `Training` record, whose time is summed over resumed segments.
+    seconds: a wall-clock budget instead (agents.budget; `budget` is then not used)."""
     found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
     start = found[0] if found else 0
     try:
         result = train(
             env_id,
             algo,
-            timesteps=budget,
+            timesteps=None if seconds else budget,
             seed=seed,
             run_dir=run_dir,
             resume=not fresh,
@@ -89,26 +84,16 @@ def train_timed(env_id, algo, budget, seed, run_dir, fresh, progress, hyperparam
             progress=progress,
             hyperparams=hyperparams,
             randomize=randomize,
+            budget=seconds,
+            eval_episodes=20 if seconds else 10,
         )
     except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
         record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
         raise
     seconds, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
     now = result.wall_s if result.timesteps > start else 0.0
-    return result, Training(algo, budget, result.timesteps, seconds, timed, "", now)
-
-
-def record_segment(run_dir: Path, start: int, end: int, seconds: float) -> tuple[float, int]:
-    """Add a training segment (steps start..end in `seconds`) to the run's TIME_FILE,
-    dropping segments past `start` (a fresh run, or steps a resumed checkpoint lost); return
-    the run's training seconds and the steps they cover."""
-    path = run_dir / TIME_FILE
-    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
-    segments = [s for s in segments if s["to"] <= start] if start > 0 else []
-    if end > start:
-        segments.append({"from": start, "to": end, "seconds": round(seconds, 3)})
-    write_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
-    return sum(s["seconds"] for s in segments), sum(s["to"] - s["from"] for s in segments)
+    shown = result.timesteps if seconds else budget  # a time budget: the steps it took
+    return result, Training(algo, shown, result.timesteps, seconds, timed, "", now)
 
 
 def check_env(
@@ -124,11 +109,14 @@ def check_env(
     hyperparams: str | Path | None = None,
     report: Path | None = None,
     randomize: dict | None = None,
+    seconds: float | None = None,
+    diagnoses: list | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
     named in the rows relative to `report`, the report's directory; default `out`). The
     agent trains with `randomize` (agents.randomization) if given; every agent is scored
-    on the nominal env."""
+    on the nominal env. seconds: a wall-clock budget (agents.budget) instead of steps;
+    diagnoses: a list the lines of a failed agent's diagnosis are appended to."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
@@ -137,7 +125,9 @@ def check_env(
         if (name == "heuristic" and heuristic is None) or (name == "plan" and not plans):
             continue
         try:
-            stats, eval_s, warm_s = warm_evaluate(env_id, name, episodes, seed)
+            stats, eval_s, warm_s = learned.warm_evaluate(
+                programs.evaluate, env_id, name, episodes, seed
+            )
         except Unsupported as exc:  # it would be wrong here, and says why
             log(f"  {name:>9}: refused: {exc}")
             continue
@@ -145,21 +135,33 @@ def check_env(
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
     budget = budget_of(env_id, algo, timesteps, hyperparams)
-    run_dir = run_dir_of(out, env_id, algo, seed, budget, randomization.tag(randomize))
-    log(f"  training {algo.upper()} for {budget:,} steps in {run_dir} ...")
+    tag = randomization.tag(randomize)
+    run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
+    if seconds:
+        run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
+    length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
+    log(f"  training {algo.upper()} {length} in {run_dir} ...")
+    log(f"  ({describe(load_hyperparams(algo, env_id, hyperparams))}; agents.defaults)")
     result, training = train_timed(
-        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
     )
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
     training = replace(training, run_dir=link)
-    stats, eval_s, warm_s = warm_evaluate(env_id, str(result.model_path), episodes, seed)
-    note = randomization.describe(randomize) if randomize else ""
-    rows.append(Row(env_id, algo, stats, eval_s, note, training, warm_s))
+    model, score = result.model_path, programs.evaluate
+    stats, eval_s, warm_s = learned.warm_evaluate(score, env_id, str(model), episodes, seed)
+    alone, lqr_note, _, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
+    notes = (randomization.describe(randomize) if randomize else "", lqr_note,
+             learned.solved_note(run_dir, seconds), learned.resumed_note(run_dir))  # fmt: skip
+    rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
     log(
         f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
         f"{training.train_s:.0f} s training)"
     )
-    return rows
+    rate = min(r.stats.success_rate for r in rows[-1:] + alone)  # the agent alone counts
+    lines = learned.diagnosis_lines(programs, env_id, model, rate, episodes, seed, plans, log)
+    if diagnoses is not None:
+        diagnoses.extend(lines)
+    return rows + alone
 
 
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
@@ -180,41 +182,7 @@ def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomi
             hp["randomize"] = randomize
         run_dir = run_dir_of(out, env_id, name, seed, budget, randomization.tag(randomize))
         check_earlier_run(run_dir, budget, hp)
-
-
-def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:
-    """The Markdown report: what was run and how it is scored, the table, the findings."""
-    trained = "\n".join(f"- {line}" for line in training_lines(rows))
-    runs = [r.training for r in rows if r.training is not None]
-    train_s, now_s = sum(t.train_s for t in runs), sum(t.now_s for t in runs)
-    eval_s = sum(r.eval_s for r in rows)
-    warm_s = sum(r.warmup_s for r in rows)
-    notes = "\n".join(f"- {line}" for line in findings(rows))
-    return (
-        f"# Agents on every environment\n\n"
-        f"{episodes} episodes per agent, seeded {seed}..{seed + episodes - 1} (the same starts "
-        "for every agent). Success is the task's criterion at the last step; each episode "
-        "ended in one way: success, failure (the task terminated it), diverged (the state "
-        "left its bounds or became non-finite) or time limit (truncated without success). "
-        "Intervals are 95 %: Wilson's score interval for the success rate, Student's t "
-        'interval for the mean return. A finding says "A beats B" only where the two '
-        "intervals do not overlap, and on which measure; otherwise it says the difference is "
-        f"not resolved at {episodes} episodes.\n\n"
-        "## Trained agents\n\nAlgorithm and budget per environment. Each budget trains in "
-        "a run directory of its own: a run of the same budget on disk is resumed (or reused "
-        "when finished), another budget starts a fresh run and keeps the earlier one, and a "
-        "run with other hyperparameters is refused unless --fresh retrains it. Training time "
-        "is stored with the run and summed over its resumed segments. PPO trains whole "
-        "rollouts (n_steps x n_envs steps), so it may train a little past the budget.\n\n"
-        f"{trained}\n\n"
-        f"Time: training {train_s:.0f} s (stored with the runs; {now_s:.0f} s of it in this "
-        f"run of the job), evaluation {eval_s:.1f} s, warm-up {warm_s:.1f} s "
-        "(one untimed episode per agent first: numba kernels compiled or loaded, LQR "
-        "designed, models loaded; counted in neither); this run of the job took "
-        f"{wall_s:.0f} s.\n\n"
-        f"{markdown_table(rows)}\n\n## Findings\n\n{notes}\n\n"
-        "![comparison](comparison.png)\n"
-    )
+        check_fingerprint(run_dir, env_id)
 
 
 def report_dir(out: Path, env_ids: list[str] | None) -> Path:
@@ -238,10 +206,13 @@ def run_check(
     progress: bool = True,
     hyperparams: str | Path | None = None,
     randomize: dict | None = None,
+    seconds: float | None = None,
 ) -> list[Row]:
     """Check every environment (default: all of `envs.ENV_IDS`); write the report to
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
-    the task's `algo`). randomize: train with randomised parameters (agents.randomization)."""
+    the task's `algo`). randomize: train with randomised parameters (agents.randomization).
+    seconds: train each agent until solved within this wall-clock budget (agents.budget;
+    always a fresh run: a clock cannot be resumed)."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -249,6 +220,7 @@ def run_check(
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given])
+    fresh = fresh or bool(seconds)
     if not fresh:
         check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
@@ -260,15 +232,18 @@ def run_check(
     )
     start = time.perf_counter()
     rows: list[Row] = []
+    diagnoses: list[str] = []
     for i, env_id in enumerate(env_ids, 1):
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
-            report, randomize,
+            report, randomize, seconds, diagnoses,
         )  # fmt: skip
     total = time.perf_counter() - start
-    write_atomic(report / "results.md", report_text(rows, episodes, seed, total))
+    diagnosis = "".join(f"- {line}\n" for line in diagnoses)
+    diagnosis = diagnosis and f"\n## Where the trained agents missed\n\n{diagnosis}"
+    write_atomic(report / "results.md", report_text(rows, episodes, seed, total) + diagnosis)
     write_csv(rows, report / "results.csv")
     plot_comparison(rows, report / "comparison.png")
     print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")
@@ -312,6 +287,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=positive_int,
         help="training budget per env (default: the YAML's n_timesteps); see --fresh for "
         "what a budget other than a run on disk does",
+    )
+    parser.add_argument(
+        "--budget",
+        type=budget_arg,
+        help="train each agent until solved (>= 80 %% evaluated success twice in a row) "
+        "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
+        "instead of --timesteps (agents.budget)",
     )
     parser.add_argument(
         "--out",
@@ -361,6 +343,7 @@ def main(argv: list[str] | None = None) -> int:
             not args.no_progress,
             args.hyperparams,
             randomize,
+            args.budget,
         )
     except UserError as exc:
         fail(parser, exc)

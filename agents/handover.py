@@ -166,11 +166,14 @@ class HandOverPolicy:
         self.policy = policy
         self.model = getattr(policy, "model", None)  # for checks of the model's spaces
         self.capture = CaptureSet(env, level, verify=verify, verify_level=verify_level)
+        self.steps = self.lqr_steps = 0  # rows acted on, and of those by LQR (for reports)
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         obs = np.asarray(observation)
         actions, state = self.policy.predict(obs, state, episode_start, deterministic)
-        a, _ = self.capture.override(obs, actions)
+        a, inside = self.capture.override(obs, actions)
+        self.steps += len(inside)
+        self.lqr_steps += int(inside.sum())
         return a.reshape(np.shape(actions)), state
 
 

@@ -1,4 +1,5 @@
-"""Training hyperparameters: the algorithm's defaults, then what the env's task declares,
+"""Training hyperparameters: the algorithm's defaults, then what the env's task implies
+(agents.defaults: discount, reward scale, shaping), then what the env's task declares,
 then the packaged YAML's entry for the env id (if any), then a user's file; each value
 checked (type, range, size) where it is read, and turned into SB3's keyword arguments.
 
@@ -6,7 +7,8 @@ One YAML file per algorithm (agents/hyperparams/<algo>.yml), RL Zoo style: a `de
 entry for every env, and entries keyed by env id that override it (also for envs that are
 not Lagrange envs, such as Pendulum-v1). Keys the training program interprets itself:
 `n_timesteps` (default budget), `n_envs`, `policy`, `normalize` (bool or VecNormalize
-keyword arguments), `action_noise` ({type: normal, sigma: S}), `policy_kwargs` (with
+keyword arguments), `reward_scale` and `shaping` ({lqr: W}, agents.shaping),
+`action_noise` ({type: normal, sigma: S}), `policy_kwargs` (with
 `activation_fn` by name), `handover` (agents.handover), `randomize` (physical parameters
 drawn at every reset of the training envs: agents.randomization) and schedules written "lin_X"
 (linear decay from X to 0). Everything else goes to the algorithm.
@@ -52,14 +54,19 @@ MANAGED_KEYS = (
     "policy_kwargs",
     "handover",
     "randomize",
+    "reward_scale",
+    "shaping",
 )
 
 
 def algorithms() -> dict:
-    """The algorithms by name: the one table (SB3's classes, imported on first use)."""
+    """The algorithms by name: the one table (SB3's and sb3-contrib's classes, imported on
+    first use)."""
+    from sb3_contrib import TQC, CrossQ
     from stable_baselines3 import PPO, SAC, TD3
 
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}  # in the order of ALGOS (tested)
+    # in the order of ALGOS (tested)
+    return {"ppo": PPO, "sac": SAC, "td3": TD3, "tqc": TQC, "crossq": CrossQ}
 
 
 ALGOS = ALGORITHMS
@@ -145,6 +152,7 @@ _POLICY_KWARGS = {
     "squash_output": true_or_false,
     "share_features_extractor": true_or_false,
     "n_critics": integer(1, 16),
+    "n_quantiles": integer(1, 1000),
 }
 _NORMALIZE = {
     "norm_obs": true_or_false,
@@ -187,6 +195,12 @@ def _handover(v):
     return v  # as written (config.yml records it so; agents.handover fills the defaults)
 
 
+def _shaping(v):
+    if not isinstance(v, dict) or set(v) != {"lqr"}:
+        raise Bad("{lqr: W} (W >= 0: the LQR potential's weight, 0 turns it off)")
+    return {"lqr": real(0.0, 100.0)(v["lqr"])}
+
+
 def _randomize(v):
     from .randomization import check_setting
 
@@ -203,6 +217,8 @@ RULES = {
     "policy_kwargs": optional(_table_of(_POLICY_KWARGS)),
     "handover": optional(_handover),
     "randomize": optional(_randomize),
+    "reward_scale": real(0.0, 1e6, open_low=True),
+    "shaping": optional(_shaping),
     "gamma": real(0.0, 1.0, open_low=True),
     "gae_lambda": _fraction,
     "learning_rate": schedule_of(real(0.0, 1.0, open_low=True)),
@@ -279,13 +295,27 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
                 f"{algo}.yml has no entry for it; give --hyperparams FILE."
             ) from None
     else:
-        hp.update(check_entries(task.hyperparams.get(algo, {}), f"{env_id}'s task ({algo})"))
+        own = task.hyperparams.get(algo, {})
+        hp.update(check_entries(derived_for(env_id, task, own), f"{env_id}'s declaration"))
+        hp.update(check_entries(own, f"{env_id}'s task ({algo})"))
     hp.update(check_entries(packaged.get(env_id, {}), f"{packaged_path} ({env_id})"))
     if path is not None:
         user = _table(Path(path))
         for entry in ("default", env_id):
             hp.update(check_entries(user.get(entry, {}), f"{path} ({entry})"))
     return hp
+
+
+def derived_for(env_id: str, task, own: dict) -> dict:
+    """agents.defaults.derived, without the LQR shaping where the task declares settings of
+    its own for the algorithm (they were measured without it; the built-in tasks' budgets)
+    or hands over to LQR (its hand-over carries its own energy shaping, agents.handover)."""
+    from .defaults import derived
+
+    out = derived(env_id, task)
+    if own:
+        out.pop("shaping", None)
+    return out
 
 
 def check_algo(env_id: str) -> str:

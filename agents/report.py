@@ -340,3 +340,38 @@ def _return_panel(ax, mine: list[Row], colours: dict[str, str]) -> None:
     ax.set_ylim(len(mine) - 0.4, -0.75)
     ax.set_yticks(y, [""] * len(mine))
     ax.grid(axis="x", alpha=0.3)
+
+
+def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:
+    """The Markdown report: what was run and how it is scored, the table, the findings."""
+    trained = "\n".join(f"- {line}" for line in training_lines(rows))
+    runs = [r.training for r in rows if r.training is not None]
+    train_s, now_s = sum(t.train_s for t in runs), sum(t.now_s for t in runs)
+    eval_s = sum(r.eval_s for r in rows)
+    warm_s = sum(r.warmup_s for r in rows)
+    notes = "\n".join(f"- {line}" for line in findings(rows))
+    return (
+        f"# Agents on every environment\n\n"
+        f"{episodes} episodes per agent, seeded {seed}..{seed + episodes - 1} (the same starts "
+        "for every agent). Success is the task's criterion at the last step; each episode "
+        "ended in one way: success, failure (the task terminated it), diverged (the state "
+        "left its bounds or became non-finite) or time limit (truncated without success). "
+        "Intervals are 95 %: Wilson's score interval for the success rate, Student's t "
+        'interval for the mean return. A finding says "A beats B" only where the two '
+        "intervals do not overlap, and on which measure; otherwise it says the difference is "
+        f"not resolved at {episodes} episodes.\n\n"
+        "## Trained agents\n\nAlgorithm and budget per environment. Each budget trains in "
+        "a run directory of its own: a run of the same budget on disk is resumed (or reused "
+        "when finished), another budget starts a fresh run and keeps the earlier one, and a "
+        "run with other hyperparameters is refused unless --fresh retrains it. Training time "
+        "is stored with the run and summed over its resumed segments. PPO trains whole "
+        "rollouts (n_steps x n_envs steps), so it may train a little past the budget.\n\n"
+        f"{trained}\n\n"
+        f"Time: training {train_s:.0f} s (stored with the runs; {now_s:.0f} s of it in this "
+        f"run of the job), evaluation {eval_s:.1f} s, warm-up {warm_s:.1f} s "
+        "(one untimed episode per agent first: numba kernels compiled or loaded, LQR "
+        "designed, models loaded; counted in neither); this run of the job took "
+        f"{wall_s:.0f} s.\n\n"
+        f"{markdown_table(rows)}\n\n## Findings\n\n{notes}\n\n"
+        "![comparison](comparison.png)\n"
+    )

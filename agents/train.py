@@ -29,6 +29,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
+from . import budget as budgets
 from . import randomization
 from .callbacks import (
     AtomicCheckpoint,
@@ -50,6 +51,7 @@ from .common import (
     write_atomic,
 )
 from .curves import CurveLogger
+from .fingerprint import task_fingerprint
 from .hparams import ALGOS, check_entries, load_hyperparams
 from .rundir import (
     check_resume_randomize,
@@ -72,6 +74,7 @@ class TrainResult:
     eval_std: float | None
     success_rate: float | None
     model: BaseAlgorithm | None = field(default=None, repr=False)
+    solved: dict | None = None  # budget runs: {seconds, timesteps, rule} when solved
 
 
 class TrainingInterrupted(KeyboardInterrupt):
@@ -105,24 +108,30 @@ def train(
     overwrite: bool = False,
     allow_missing_buffer: bool = False,
     randomize: dict | None = None,
+    budget: float | None = None,
 ) -> TrainResult:
     """Train `algo` on `env_id`; return where the model is and how it evaluated.
 
     timesteps, n_envs: override the YAML's n_timesteps / n_envs. hyperparams: a YAML file
     in the format of agents/hyperparams/<algo>.yml whose entries override the packaged ones.
     eval_freq and checkpoint_freq count environment steps over the whole run (default:
-    total/10 but at least 2000, and total/5). A directory holding an earlier run needs
-    `resume` (continue from its newest checkpoint) or `overwrite` (delete it, start afresh);
-    an off-policy checkpoint without its replay buffer is refused unless
-    `allow_missing_buffer` (the run then goes on with an empty buffer). randomize: the
+    total/10 but at least 2000, and total/5; with `budget`, agents.budget's schedule). A
+    directory holding an earlier run needs `resume` (continue from its newest checkpoint)
+    or `overwrite` (delete it, start afresh); an off-policy checkpoint without its replay
+    buffer is refused unless `allow_missing_buffer` (the run then goes on with an empty
+    buffer). randomize: the
     hyperparameter `randomize` (agents.randomization, e.g. {"inertial": 0.25}) overriding
-    the YAML's; a resumed run without it keeps the one its config.yml records.
+    the YAML's; a resumed run without it keeps the one its config.yml records. budget:
+    wall-clock seconds; train until solved or out of time (agents.budget), `timesteps`
+    then caps the steps (default: no cap, constant learning rates).
 
     Raises UserError for problems with the arguments, the hyperparameters or the run
     directory (before anything is written), and TrainingInterrupted after saving when
     SIGINT or SIGTERM stopped the run."""
     env_id = check_env_id(env_id)
     hp = load_hyperparams(algo, env_id, hyperparams)
+    if budget is not None and timesteps is None:  # the clock or success stops it
+        timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
     n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
     for name, value in (("timesteps", total), ("n_envs", n_envs), ("eval_episodes", eval_episodes)):
@@ -151,17 +160,20 @@ def train(
             "vectorization": vectorization,
             "hyperparams_file": None if hyperparams is None else str(hyperparams),
             "hyperparams": hp,
+            "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
+            **({"budget_s": float(budget)} if budget is not None else {}),
         }
         if env_options:  # what the setting meant for this env: absolute ranges, model units
             config["env_options"] = {"randomize": randomization.recorded(env_options["randomize"])}
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
-            eval_freq=eval_freq or max(total // 10, 2000),
+            eval_freq=eval_freq or budgets.budget_eval_freq(total, hp["n_timesteps"], budget),
             eval_episodes=eval_episodes,
             checkpoint_freq=checkpoint_freq or max(total // 5, 1),
             progress=progress,
             verbose=verbose,
             allow_missing_buffer=allow_missing_buffer,
+            budget=budget,
         )
         return _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **options)
 
@@ -178,13 +190,15 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
+        clock = budgets.Clock(o["budget"] or float("inf"))
+        solved = budgets.SolvedStop(run_dir, clock) if o["budget"] else None
         evaluation = ScheduledEval(
             eval_env,
             o["eval_freq"],
             stop,
             n_eval_episodes=o["eval_episodes"],
             deterministic=True,
-            callback_after_eval=curves.after_eval,
+            callback_after_eval=budgets.AfterEvals(curves.after_eval, *[solved] * bool(solved)),
             log_path=str(curves.staging_dir),
             verbose=0,
         )
@@ -194,7 +208,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         learning = model.num_timesteps < total  # else a finished run, resumed
         with stop:  # from here to the last save a signal stops and saves instead of killing
             if learning:
-                callbacks = [stop, curves, evaluation, checkpoint]
+                callbacks = [stop, clock, curves, evaluation, checkpoint]
                 label = f"{algo.upper()} on {env_id}" if o["progress"] else ""
                 _learn(model, total, callbacks, fresh=found is None, progress=label)
             if stop.signum is not None:  # keep what the weights have learnt from, no more
@@ -203,6 +217,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
             if learning:
                 checkpoint.save()
             model_path = save_final(model, run_dir)
+            if solved is not None and stop.signum is None:  # the best evaluated, kept
+                budgets.keep_best(evaluation, solved, run_dir)
             curves.close()
         wall = time.perf_counter() - start
     finally:
@@ -219,6 +235,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         eval_std=float(last["std_return"]) if last else None,
         success_rate=float(success) if success != "" else None,
         model=model,
+        solved=None if solved is None else solved.solved,
     )
     if stop.signum is not None:
         raise TrainingInterrupted(result, stop.signum)
@@ -258,6 +275,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("env_id", help="Gymnasium id, e.g. Lagrange/BeadOnRod-v1")
     parser.add_argument("--algo", default="ppo", help=f"one of {', '.join(ALGOS)}")
     parser.add_argument("--timesteps", type=positive_int, help="budget (default: YAML n_timesteps)")
+    parser.add_argument(
+        "--budget",
+        type=budgets.budget_arg,
+        help="wall-clock budget (600, 90s, 10m, 1.5h): train until the evaluated success "
+        "holds (>= 80 %% at 2 evaluations in a row) or the time is spent; keeps the best "
+        "model (agents.budget). Not repeatable: use --timesteps for that",
+    )
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--n-envs", type=positive_int, help="parallel envs (default: YAML n_envs)")
     parser.add_argument(
@@ -283,7 +307,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--eval-freq", type=positive_int, help="env steps between evaluations (whole run)"
     )
-    parser.add_argument("--eval-episodes", type=positive_int, default=10)
+    parser.add_argument(
+        "--eval-episodes", type=positive_int, help="per evaluation (default 10; 20 with --budget)"
+    )
     parser.add_argument(
         "--checkpoint-freq", type=positive_int, help="env steps between checkpoints"
     )
@@ -325,7 +351,7 @@ def main(argv: list[str] | None = None) -> int:
             args.run_dir,
             args.resume,
             args.eval_freq,
-            args.eval_episodes,
+            args.eval_episodes or (20 if args.budget else 10),
             args.checkpoint_freq,
             args.vectorization,
             progress=not args.no_progress,
@@ -334,6 +360,7 @@ def main(argv: list[str] | None = None) -> int:
             overwrite=args.overwrite,
             allow_missing_buffer=args.allow_missing_buffer,
             randomize=randomize,
+            budget=args.budget,
         )
     except UserError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
@@ -359,9 +386,12 @@ def main(argv: list[str] | None = None) -> int:
         if result.eval_mean is None
         else f"last evaluation {result.eval_mean:.1f} (sd {result.eval_std:.1f}){rate}"
     )
+    solved, when = result.solved, ""
+    if solved:
+        when = f" Solved after {solved['seconds']:.0f} s, {solved['timesteps']} steps."
     print(
         f"{args.algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "
-        f"{evaluation}. Model: {result.model_path}"
+        f"{evaluation}.{when} Model: {result.model_path}"
     )
     return 0
 

@@ -159,6 +159,29 @@ def _normalize_kwargs(hp: dict) -> dict | None:
     return dict(normalize)
 
 
+def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
+    """`venv` with the reward scale and LQR shaping the hyperparameters ask for
+    (agents.shaping; the registered reward is untouched), or `venv` itself. Warns first
+    when the task's reward is flat inside the tolerance of its success set (agents.diagnosis)."""
+    from .common import task_of
+    from .defaults import episode_steps
+    from .diagnosis import warn_if_flat
+    from .shaping import TaskRewardVecEnv, lqr_potential
+
+    if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
+        warn_if_flat(env_id)
+    scale = float(hp.get("reward_scale", 1.0))
+    weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
+    if scale == 1.0 and not weight:
+        return venv
+    gamma = float(hp.get("gamma", 0.99))
+    potential = None
+    if weight:
+        horizon = episode_steps(env_id, task_of(env_id))
+        potential = lqr_potential(env_id, weight, gamma, horizon)
+    return TaskRewardVecEnv(venv, scale, potential, gamma)
+
+
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):
     """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks. With
     the hyperparameter `randomize` (agents.randomization) both draw their physical
@@ -177,6 +200,12 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
         check = {k: handover[k] for k in ("verify", "verify_level")}
         train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
         eval_env = HandOverVecEnv(eval_env, handover["level"], **check)
+    # the scale applies to everything the agent is paid, the hand-over's shaping included
+    train_env = task_reward(train_env, env_id, hp)
+    if train_env.__class__.__name__ == "TaskRewardVecEnv":  # SB3 syncs the statistics
+        from .shaping import TaskRewardVecEnv  # through wrappers of the same depth
+
+        eval_env = TaskRewardVecEnv(eval_env)  # the env's own rewards
     norm = _normalize_kwargs(hp)
     if norm is not None:
         train_env = VecNormalize(train_env, **norm)

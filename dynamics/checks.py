@@ -34,8 +34,9 @@ MAX_SUBSTEPS = 1_000_000
 """Most RK4 substeps per `step`: one call then costs about a second per row, and finer steps
 gain nothing in double precision (RK4's error at dt / 1e6 is far below round-off)."""
 
-ALGORITHMS = ("ppo", "sac", "td3")
-"""The stable-baselines3 algorithms agents.train trains, the ones a task may name in `algo`
+ALGORITHMS = ("ppo", "sac", "td3", "tqc", "crossq")
+"""The algorithms agents.train trains (stable-baselines3's; tqc and crossq from
+sb3-contrib), the ones a task may name in `algo`
 and `hyperparams` (a name outside this table is refused, never trained as another)."""
 
 INTEGRATORS = tuple(METHODS)

@@ -51,7 +51,10 @@ def test_the_training_envs_draw_their_parameters_at_every_reset():
     try:
         for venv in (train_env, eval_env):
             venv.reset()
-            m1 = np.array([info["params"]["m1"] for info in venv.venv.venv.reset_infos])
+            inner = venv
+            while not any("params" in i for i in inner.reset_infos):  # the vec env under
+                inner = inner.venv  # VecNormalize and the training's reward wrappers
+            m1 = np.array([info["params"]["m1"] for info in inner.reset_infos])
             assert ((0.75 <= m1) & (m1 <= 1.25)).all()
             assert len(set(m1.tolist())) == len(m1)  # each copy its own draw
     finally:

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 AGENTS = Path(__file__).resolve().parents[2] / "agents"
-PROGRAMS = ("check", "evaluate", "lqr", "plan", "train")
+PROGRAMS = ("check", "evaluate", "identify", "lqr", "plan", "train")
 
 
 def _imports(path: Path, modules: set[str]) -> set[str]:

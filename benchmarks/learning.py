@@ -1,0 +1,175 @@
+"""The learning benchmark: systems x learners, each trained with the task's derived
+defaults until solved within a wall-clock budget (agents.budget).
+
+    python benchmarks/learning.py                                    # every system, 4 learners
+    python benchmarks/learning.py examples.furuta:Examples/Furuta-v0 --algos ppo,sac --budget 5m
+    python benchmarks/learning.py --seeds 0,1,2 --budget 10m --out runs/learning
+
+Systems (positional, default): every registered Lagrange env and every env that a module
+of `examples/` registers when imported (a module that does not import, for want of an
+optional package, is named and skipped), so a new example joins by being there. Each run
+trains with `agents.train.train(..., budget=...)`: evaluations of 20 episodes every
+n_timesteps / 10 steps, stop at >= 80 % twice in a row, the best model kept. The kept
+model is then scored on 20 seeded episodes (seeds 0..19, as `agents.check`): success with
+Wilson's 95 % interval. The columns "to 80 %" give the training seconds and env-steps at
+which the rule was met (blank: not within the budget). A run that hands over to LQR is
+also scored alone: where a start lies inside LQR's set the agent alone is counted, else
+the hand-over, and the row gives the other score and the share of steps LQR acted.
+
+Writes OUT/results.md (the table) and OUT/results.csv, atomically, after every run (an
+interrupted benchmark keeps what it measured). Run it with `nice` on a shared machine: each
+run holds one core for up to the budget.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import importlib
+import io
+import os
+import pkgutil
+import platform
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import gymnasium as gym  # noqa: E402
+
+from agents.budget import budget_arg  # noqa: E402
+from agents.common import check_env_id, env_slug, register_envs, write_atomic  # noqa: E402
+from agents.report import wilson_interval  # noqa: E402
+
+ALGOS = ("ppo", "sac", "tqc", "crossq")
+FIELDS = ("system algo seed success n low high to80_s to80_steps trained_steps train_s "
+          "lqr_share note").split()  # fmt: skip
+
+
+def example_systems() -> tuple[list[str], list[str]]:
+    """(env ids, skipped notes): every env the modules of `examples/` register."""
+    import examples
+
+    ids, skipped = [], []
+    for info in pkgutil.iter_modules(examples.__path__):
+        name = f"examples.{info.name}"
+        try:
+            module = importlib.import_module(name)
+        except Exception as exc:  # an optional dependency missing: say so, go on
+            skipped.append(f"{name}: {type(exc).__name__}: {str(exc)[:80]}")
+            continue
+        # the ids whose task is one of the module's own (imported earlier or now)
+        tasks = {id(v) for v in vars(module).values()}
+        ids += [f"{name}:{e}" for e, spec in sorted(gym.registry.items())
+                if id(spec.kwargs.get("task")) in tasks]  # fmt: skip
+    return ids, skipped
+
+
+def default_systems() -> tuple[list[str], list[str]]:
+    ids, skipped = example_systems()
+    return list(register_envs()) + ids, skipped
+
+
+def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dict:
+    """Train one learner on one system within the budget and score the kept model."""
+    from agents import evaluate as programs
+    from agents.learned import alone_rows
+    from agents.train import train
+
+    env_id = check_env_id(system, lagrange=True)
+    run_dir = out / "runs" / env_slug(env_id) / f"{algo}_seed{seed}"
+    result = train(env_id, algo, seed=seed, run_dir=run_dir, overwrite=True, progress=False,
+                   eval_episodes=20, budget=seconds)  # fmt: skip
+    stats = programs.evaluate(env_id, str(result.model_path), 20, 0)
+    quiet = lambda _: None  # noqa: E731
+    alone, note, share, inside = alone_rows(programs, env_id, algo, result.model_path, 20, 0,
+                                            quiet)  # fmt: skip
+    if alone and inside:  # a start inside LQR's set: the agent's own success counts
+        note = f"with hand-over {stats.success_rate:.0%}; {note}"
+        stats = alone[0].stats
+    elif alone:  # every start outside it: the hand-over's, beside the agent alone
+        note = f"agent alone {alone[0].stats.success_rate:.0%}; {note}"
+    k, n = int(stats.successes.sum()), len(stats.successes)
+    interval = wilson_interval(k, n)
+    solved = result.solved or {}
+    return {
+        "system": env_id, "algo": algo, "seed": seed, "success": k / n, "n": n,
+        "low": interval.low, "high": interval.high,
+        "to80_s": solved.get("seconds", ""), "to80_steps": solved.get("timesteps", ""),
+        "trained_steps": result.timesteps, "train_s": round(result.wall_s, 1),
+        "lqr_share": "" if share is None else round(share, 3), "note": note,
+    }  # fmt: skip
+
+
+def table(rows: list[dict], seconds: float, header: str) -> str:
+    lines = [
+        header,
+        "",
+        "| system | learner | seed | success (20 episodes, 95 % Wilson) | to 80 %: s | to 80 %: "
+        "env-steps | trained steps | training s | note |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        to_s = f"{r['to80_s']:.0f}" if r["to80_s"] != "" else f"not in {seconds:g} s"
+        to_n = f"{r['to80_steps']:,}" if r["to80_steps"] != "" else ""
+        lines.append(
+            f"| {r['system']} | {r['algo']} | {r['seed']} | {r['success']:.0%} "
+            f"[{r['low']:.0%}, {r['high']:.0%}] | {to_s} | {to_n} | {r['trained_steps']:,} "
+            f"| {r['train_s']:.0f} | {r['note']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write(rows: list[dict], out: Path, seconds: float, header: str) -> None:
+    write_atomic(out / "results.md", table(rows, seconds, header))
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, FIELDS)
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(out / "results.csv", buffer.getvalue())
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("systems", nargs="*", help="env ids or module:NS/Env-v0 (default: all)")
+    parser.add_argument("--algos", default=",".join(ALGOS), help="comma-separated learners")
+    parser.add_argument("--budget", type=budget_arg, default=600.0, help="per run (default 10m)")
+    parser.add_argument("--seeds", default="0", help="training seeds, comma-separated")
+    parser.add_argument("--out", default="runs/learning", help="output directory")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from agents.common import set_torch_threads
+    from agents.hparams import check_algo_name
+
+    set_torch_threads(1)
+    algos = [check_algo_name(a.strip()) for a in args.algos.split(",") if a.strip()]
+    seeds = [int(s) for s in args.seeds.split(",")]
+    systems, skipped = (args.systems, []) if args.systems else default_systems()
+    out = Path(args.out)
+    header = (
+        f"# Learning benchmark\n\n{datetime.date.today()}, {platform.node() or 'this machine'}"
+        f" ({os.cpu_count()} cores), budget {args.budget:g} s per run, derived defaults "
+        f"(agents.defaults). Command: `python benchmarks/learning.py "
+        f"{' '.join(sys.argv[1:] if argv is None else argv)}`"
+        + "".join(f"\n\nSkipped: {s}" for s in skipped)
+    )
+    rows: list[dict] = []
+    for system in systems:
+        for algo in algos:
+            for seed in seeds:
+                print(f"{system} {algo} seed {seed} ...", file=sys.stderr, flush=True)
+                try:
+                    rows.append(run_one(system, algo, seed, args.budget, out))
+                except Exception as exc:  # one failing system must not lose the others
+                    print(f"  failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+                    continue
+                r = rows[-1]
+                print(f"  {r['success']:.0%}, to 80 %: {r['to80_s'] or '-'} s", file=sys.stderr)
+                write(rows, out, args.budget, header)
+    print(table(rows, args.budget, header))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

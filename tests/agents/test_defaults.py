@@ -1,0 +1,129 @@
+"""Learning defaults derived from a task: discount, reward scale, shaping on/off, hand-over
+on/off, the flat-reward probe, and the budget's parsing."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+import examples.furuta  # noqa: F401  (registers Examples/Furuta-v0)
+from agents import hparams
+from agents.budget import constant_schedules, parse_budget
+from agents.defaults import GAMMA_MAX, GAMMA_MIN, derived, discount, reward_span
+from agents.diagnosis import flat_components, success_edges
+from agents.shaping import LQRPotential, TaskRewardVecEnv
+from agents.vecenv import make_envs
+
+FURUTA = "Examples/Furuta-v0"
+ACROBOT = next(e for e in envs.ENV_IDS if "/Acrobot-" in e)
+BEAD = next(e for e in envs.ENV_IDS if "/BeadOnRod-" in e)
+
+
+def test_discount_looks_a_fifth_of_the_episode_ahead():
+    # 500 steps of 20 ms = 10 s; tau = 2 s; gamma = 1 - 0.02 / 2
+    assert discount(0.02, 500) == pytest.approx(0.99)
+    assert discount(0.05, 200) == pytest.approx(1 - 0.05 / 2.0)
+    # the effective horizon 1 / (1 - gamma) is a fifth of the episode, in steps
+    assert 1 / (1 - discount(0.01, 400)) == pytest.approx(400 / 5)
+    assert discount(0.05, 10) == GAMMA_MIN  # a 0.5 s episode: clipped
+    assert discount(0.001, 100_000) == GAMMA_MAX
+    with pytest.raises(ValueError, match="positive"):
+        discount(0.0, 100)
+
+
+def test_reward_scale_makes_one_steps_range_one():
+    task = gym.spec(FURUTA).kwargs["task"]
+    span = reward_span(task)
+    assert span == pytest.approx(2 + 0.1 * np.pi**2 + 0.01)  # the terms' declared bounds
+    assert derived(FURUTA, task)["reward_scale"] == pytest.approx(1 / span, rel=1e-5)
+
+
+def test_derived_values_sit_between_the_yaml_default_and_the_task():
+    hp = hparams.load("ppo", FURUTA)  # the example declares no hyperparameters
+    assert hp["gamma"] == pytest.approx(0.99) and hp["shaping"] == {"lqr": 0.5}
+    task = gym.spec(ACROBOT).kwargs["task"]
+    assert task.hyperparams["ppo"]["gamma"] == 0.998
+    acro = hparams.load("ppo", ACROBOT)
+    assert acro["gamma"] == 0.998  # the task's own value overrides the derived one
+    assert "handover" in acro and acro.get("shaping") is None  # hand-over: its own shaping
+    bead = hparams.load("ppo", BEAD)  # declares its budget, measured without shaping
+    assert bead.get("shaping") is None and bead["gamma"] == pytest.approx(0.975)
+
+
+def test_shaping_off_and_on_in_the_training_env():
+    hp = {**hparams.load("ppo", BEAD), "shaping": {"lqr": 0.5}}
+    train, evaluation = make_envs(BEAD, {**hp, "normalize": False}, 2, 0, "auto", 1)
+    assert isinstance(train, TaskRewardVecEnv) and train.potential is not None
+    assert isinstance(evaluation, TaskRewardVecEnv) and evaluation.potential is None
+    assert evaluation.scale == 1.0  # evaluations score the env's own reward
+    train.close(), evaluation.close()
+    off = {**hp, "normalize": False, "shaping": {"lqr": 0.0}, "reward_scale": 1.0}
+    train, evaluation = make_envs(BEAD, off, 2, 0, "auto", 1)
+    assert not isinstance(train, TaskRewardVecEnv)  # nothing to do: not wrapped
+    train.close(), evaluation.close()
+
+
+def test_shaped_reward_is_the_potential_difference():
+    hp = {**hparams.load("ppo", BEAD), "normalize": False, "shaping": {"lqr": 0.5}}
+    shaped, _ = make_envs(BEAD, hp, 2, 0, "auto", 1)
+    plain, _ = make_envs(BEAD, {**hp, "shaping": {"lqr": 0.0}}, 2, 0, "auto", 1)
+    phi, gamma, scale = shaped.potential, shaped.gamma, shaped.scale
+    obs_s, obs_p = shaped.reset(), plain.reset()
+    np.testing.assert_array_equal(obs_s, obs_p)
+    for _ in range(5):
+        a = np.zeros((2, 1), dtype=np.float32)
+        before = phi(obs_s)
+        obs_s, r_s, d_s, _ = shaped.step(a)
+        obs_p, r_p, d_p, _ = plain.step(a)
+        assert not d_s.any()
+        # F = gamma Phi(s') - Phi(s), on top of the scaled task reward (float32 rewards)
+        expected = r_p + gamma * phi(obs_s) - before
+        np.testing.assert_allclose(r_s, expected, rtol=1e-5, atol=1e-5)
+        assert plain.scale == pytest.approx(scale)
+
+
+def test_potential_is_zero_at_the_operating_point_and_half_down_at_a_start():
+    phi = LQRPotential(FURUTA, 0.5, 0.99, 500)
+    env = gym.make(FURUTA)
+    obs = np.array([1.0, 0.0, 1.0, 0.0, 0.0, 0.0])  # alpha = theta = 0, at rest: upright
+    assert phi(obs[None])[0] == pytest.approx(0.0, abs=1e-9)
+    starts = [env.reset(seed=s)[0] for s in range(64)]
+    # V_start is the median cost over these starts, so the median start sits at -W/2; of an
+    # even count the median averages two costs, which v / (v + V_start) does not keep exact
+    assert np.median(phi(np.stack(starts))) == pytest.approx(-phi.amplitude / 2, rel=1e-3)
+
+
+def test_flat_reward_probe_finds_the_furutas_flat_angle_and_not_the_arms():
+    furuta = success_edges(FURUTA)
+    assert furuta.inside
+    # success is |theta| < 0.05: the probe's grid edge is the power of 2 below it
+    assert furuta.edge[furuta.names.index("theta")] == 2.0**-5
+    assert "theta" in flat_components(furuta)  # cos theta is flat within 0.05 rad
+    arm = next(e for e in envs.ENV_IDS if "/TwoLinkArm-" in e)
+    assert flat_components(success_edges(arm)) == []
+
+
+@pytest.mark.parametrize(
+    "text, seconds", [("600", 600), ("90s", 90), ("10m", 600), ("1.5h", 5400), ("2min", 120)]
+)
+def test_budget_parses_times(text, seconds):
+    assert parse_budget(text) == seconds
+
+
+@pytest.mark.parametrize("text", ["", "ten minutes", "-5m", "0", "5d"])
+def test_budget_refuses_what_is_not_a_time(text):
+    with pytest.raises(ValueError, match="expected a"):
+        parse_budget(text)
+
+
+def test_a_budget_run_reads_linear_schedules_as_constants():
+    hp = constant_schedules({"learning_rate": "lin_1e-3", "gamma": 0.99, "clip_range": 0.2})
+    assert hp == {"learning_rate": 1e-3, "gamma": 0.99, "clip_range": 0.2}
+
+
+def test_every_algorithm_builds_with_the_derived_settings():
+    for algo in hparams.ALGOS:
+        hp = hparams.load(algo, FURUTA)
+        assert hparams.algo_kwargs(algo, hp, 1)["gamma"] == pytest.approx(0.99)

@@ -1,0 +1,47 @@
+"""The diagnosis of a failed agent, and runs refused for another declaration of the task."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import envs
+import examples.furuta  # noqa: F401  (registers Examples/Furuta-v0)
+from agents.common import UserError
+from agents.diagnosis import diagnose, rollout_ends, success_edges
+from agents.evaluate import make_agent
+from agents.fingerprint import check_fingerprint, task_fingerprint
+
+FURUTA = "Examples/Furuta-v0"
+
+
+@pytest.mark.slow  # three rollouts of four 500-step episodes, about 10 s
+def test_the_zero_agent_falls_and_lqr_holds_from_the_same_starts():
+    edges = success_edges(FURUTA)
+    zero = rollout_ends(make_agent, FURUTA, "zero", 4, 0, edges, "zero")
+    assert zero.endings["failure"] == 4  # the pendulum falls past 0.6 rad
+    assert np.all(zero.distance > 1) and "theta" in zero.outside
+    lqr = rollout_ends(make_agent, FURUTA, "lqr", 4, 0, edges, "lqr")
+    assert lqr.endings["success"] == 4 and np.all(lqr.distance <= 1)
+    lines = diagnose(make_agent, FURUTA, "zero", 4, 0)
+    assert lines[0].startswith("trained: 4 failure") and lines[1].startswith("lqr: 4 success")
+    assert "reward flat inside the success tolerance along theta" in lines[-1]
+
+
+def test_a_changed_declaration_gets_another_fingerprint(tmp_path):
+    before = task_fingerprint(FURUTA)
+    assert before == task_fingerprint(FURUTA) and task_fingerprint("Pendulum-v1") is None
+    task = gym.spec(FURUTA).kwargs["task"]
+    changed = dataclasses.replace(task, max_episode_steps=499, name="FurutaChanged")
+    envs.register("Examples/FurutaChanged-v0", changed)
+    assert task_fingerprint("Examples/FurutaChanged-v0") != before
+    config = {"env_id": FURUTA, "algo": "ppo", "task": before}
+    (tmp_path / "config.yml").write_text(yaml.safe_dump(config))
+    check_fingerprint(tmp_path, FURUTA)  # the same declaration: reused
+    (tmp_path / "config.yml").write_text(yaml.safe_dump({**config, "task": "0" * 16}))
+    with pytest.raises(UserError, match="another declaration of Examples/Furuta-v0"):
+        check_fingerprint(tmp_path, FURUTA)
