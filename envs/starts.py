@@ -28,7 +28,11 @@ def drawn_start(plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray
     start = plant.task.start
     x, g, named = start_values(plant, start(rng, plant.p), rng)
     n_x, n_g = len(plant.state_names), len(plant.goal_names)
-    if x.shape != (n_x,) or g.shape != (n_g,) or not (np.isfinite(x).all() and np.isfinite(g).all()):
+    if (
+        x.shape != (n_x,)
+        or g.shape != (n_g,)
+        or not (np.isfinite(x).all() and np.isfinite(g).all())
+    ):
         raise ValueError(
             f"Task {plant.task.name!r}: `start` must return a finite state of shape "
             f"({n_x},) and goal of shape ({n_g},); got {x.tolist()} and {g.tolist()}."
