@@ -10,6 +10,7 @@ runtime compiles them. The numbers and names themselves are checked by the one v
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Callable, Mapping
 
@@ -177,12 +178,8 @@ def _check_operating_point(plant) -> None:
             x0 = plant.operating_state(g, x)
     except Exception as exc:  # the task's own function: any error is its slip
         form = "(x, goal, p)" if named else "the former form (g, x, system)"
-        raise _fail(
-            plant.task.name,
-            "operating_point",
-            f"function {names.label(op)}, called in {form}, fails on sample rows: "
-            f"{type(exc).__name__}: {exc}",
-        ) from None
+        when = f", called in {form}, fails on sample rows"
+        raise _slip(plant, "operating_point", op, when, exc) from None
     if x0.shape != x.shape or not np.isfinite(x0).all():
         raise _fail(
             plant.task.name,
@@ -191,6 +188,26 @@ def _check_operating_point(plant) -> None:
             + ("" if x0.shape != x.shape else " with NaN or inf")
             + ".",
         )
+
+
+def _slip(plant, field: str, fn, when: str, exc: Exception) -> DeclarationError:
+    """The one-line error of a start or operating-point function tried at make: what it
+    raised (a misspelt field with a suggestion), or the check of what it returned."""
+    text = str(exc)
+    if text.startswith(f"Task {plant.task.name!r}"):  # envs.names' check of its names
+        return DeclarationError(text)
+    hint = ""
+    missing = (
+        re.search(r"has no attribute '(\w+)'", text) if isinstance(exc, AttributeError) else None
+    )
+    if missing:
+        obj = getattr(exc, "obj", None)
+        known = getattr(obj, "_fields", None) or (
+            plant.p.dtype.names if obj is None or isinstance(obj, np.record) else ()
+        )  # a numpy record's own error names no object
+        hint = did_you_mean(missing[1], known)
+    return _fail(plant.task.name, field, f"function {names.label(fn)}{when}: "
+                 f"{type(exc).__name__}: {text}{'.' + hint if hint else ''}")  # fmt: skip
 
 
 def _check_starts(plant) -> None:
@@ -204,12 +221,7 @@ def _check_starts(plant) -> None:
                 rng = np.random.default_rng(12345)
                 named = names.start_values(plant, start(rng, plant.p), rng)[2]
         except Exception as exc:  # the task's own function: any error is its slip
-            raise _fail(
-                plant.task.name,
-                "start",
-                f"function {names.label(start)} fails on a sample draw: "
-                f"{type(exc).__name__}: {exc}",
-            ) from None
+            raise _slip(plant, "start", start, " fails on a sample draw", exc) from None
         if not named:
             warnings.warn(
                 names.FORMER_START.format(task=plant.task.name, fn=names.label(start)),

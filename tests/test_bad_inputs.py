@@ -53,7 +53,7 @@ def _nan_point(x, goal, p):
 
 
 def _start_typo(rng, p):
-    return {"x": rng.uniform(-p.lenght, p.l)}, {}  # p.l misspelt
+    return {"x": rng.uniform(-0.1, 0.1) * p.m_pol}, {}  # p.m_pole misspelt
 
 
 def _start_unknown_state(rng, p):
@@ -332,7 +332,7 @@ MODELS = {
     "a start function's slip": (
         lambda: envs.LagrangianEnv(dataclasses.replace(BASE, start=_start_typo)),
         DeclarationError,
-        ["`start`", "function _start_typo", "fails on a sample draw", "lenght"],
+        ["`start`", "function _start_typo", "fails on a sample draw", "Did you mean 'm_pole'"],
     ),
     "a start function naming an unknown state": (
         lambda: envs.LagrangianEnv(dataclasses.replace(BASE, start=_start_unknown_state)),
@@ -342,7 +342,7 @@ MODELS = {
     "an operating-point function's slip": (
         lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_point_typo)),
         DeclarationError,
-        ["`operating_point`", "function _point_typo", "(x, goal, p)", "'xx'"],
+        ["`operating_point`", "function _point_typo", "(x, goal, p)", "'xx'", "Did you mean 'x'"],
     ),
     "an operating-point function naming an unknown state": (
         lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_point_unknown_state)),
