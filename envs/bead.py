@@ -136,8 +136,8 @@ def failure(x, a, goal, p):
 
 def start(rng, p):
     h = p.rod_length / 2
-    x = np.array([rng.uniform(-0.5 * h, 0.5 * h), rng.uniform(-0.1, 0.1), 0.0, 0.0])
-    return x, np.array([rng.uniform(-TARGET_RANGE * h, TARGET_RANGE * h)])
+    x = {"r": rng.uniform(-0.5 * h, 0.5 * h), "phi": rng.uniform(-0.1, 0.1)}
+    return x, {"r*": rng.uniform(-TARGET_RANGE * h, TARGET_RANGE * h)}
 
 
 def target_low(p):

@@ -113,6 +113,7 @@ import numpy as np
 from dynamics.bicycle import DEPENDENT_RATES, bicycle_system, upright_state
 
 from . import rendering_bicycle
+from .resolved import state_names
 from .task import Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 
 SPEED_RANGE = (2.0, 6.0)
@@ -229,12 +230,13 @@ def start(rng, p):
     phid, deltad = rng.uniform(-START_RATE, START_RATE, 2)
     x[names.index("phi")], x[names.index("delta")] = phi, delta
     x[n + names.index("phi")], x[n + names.index("delta")] = phid, deltad
-    return on_ground(system, x, v_star), np.array([v_star])
+    return dict(zip(state_names(system), on_ground(system, x, v_star))), {"v*": v_star}
 
 
-def upright_running(g, x, system):
+def upright_running(x, goal, p, system):
     """Upright straight running along N.x at v*: a steady motion that needs no torque."""
-    return np.stack([upright_state(system, v) for v in g[:, 0]])
+    rows = np.stack([upright_state(system, v) for v in goal.v_star])
+    return dict(zip(state_names(system), rows.T))
 
 
 TASK = Task(

@@ -10,11 +10,15 @@ runtime compiles them. The numbers and names themselves are checked by the one v
 
 from __future__ import annotations
 
+import re
+import warnings
 from collections.abc import Callable, Mapping
 
 import numpy as np
 
 from dynamics.checks import did_you_mean, positive_float, positive_int, real_array
+
+from . import names
 
 
 class Unsupported(ValueError):
@@ -157,17 +161,25 @@ def _check_goal_observed(plant) -> None:
 def _check_operating_point(plant) -> None:
     """An operating-point function, tried on sample goals and starts: one finite state per
     row (its slips surface here, not when an agent first asks)."""
-    if not callable(plant.task.operating_point):
+    op = plant.task.operating_point
+    if not callable(op):
         return
+    named = names.named_operating_point(op)
+    if not named:
+        warnings.warn(
+            names.FORMER_OPERATING_POINT.format(task=plant.task.name, fn=names.label(op)),
+            DeprecationWarning,
+            stacklevel=2,
+        )
     rows, g = plant.sample_rows(4)
     x = rows[:, : len(plant.state_names)]
     try:
         with np.errstate(all="ignore"):
             x0 = plant.operating_state(g, x)
     except Exception as exc:  # the task's own function: any error is its slip
-        raise _fail(
-            plant.task.name, "operating_point", f"fails on sample rows: {type(exc).__name__}: {exc}"
-        ) from None
+        form = "(x, goal, p)" if named else "the former form (g, x, system)"
+        when = f", called in {form}, fails on sample rows"
+        raise _slip(plant, "operating_point", op, when, exc) from None
     if x0.shape != x.shape or not np.isfinite(x0).all():
         raise _fail(
             plant.task.name,
@@ -178,9 +190,44 @@ def _check_operating_point(plant) -> None:
         )
 
 
+def _slip(plant, field: str, fn, when: str, exc: Exception) -> DeclarationError:
+    """The one-line error of a start or operating-point function tried at make: what it
+    raised (a misspelt field with a suggestion), or the check of what it returned."""
+    text = str(exc)
+    if text.startswith(f"Task {plant.task.name!r}"):  # envs.names' check of its names
+        return DeclarationError(text)
+    hint = ""
+    missing = (
+        re.search(r"has no attribute '(\w+)'", text) if isinstance(exc, AttributeError) else None
+    )
+    if missing:
+        obj = getattr(exc, "obj", None)
+        known = getattr(obj, "_fields", None) or (
+            plant.p.dtype.names if obj is None or isinstance(obj, np.record) else ()
+        )  # a numpy record's own error names no object
+        hint = did_you_mean(missing[1], known)
+    return _fail(plant.task.name, field, f"function {names.label(fn)}{when}: "
+                 f"{type(exc).__name__}: {text}{'.' + hint if hint else ''}")  # fmt: skip
+
+
 def _check_starts(plant) -> None:
     """The start distribution (a function's too, tried here on sample draws) gives states
-    within the task's limits: one beyond would be observed clipped and end at once."""
+    within the task's limits: one beyond would be observed clipped and end at once. A
+    function's slips are named here, and its former form (arrays) warned of."""
+    start = plant.task.start
+    if callable(start):
+        try:
+            with np.errstate(all="ignore"):
+                rng = np.random.default_rng(12345)
+                named = names.start_values(plant, start(rng, plant.p), rng)[2]
+        except Exception as exc:  # the task's own function: any error is its slip
+            raise _slip(plant, "start", start, " fails on a sample draw", exc) from None
+        if not named:
+            warnings.warn(
+                names.FORMER_START.format(task=plant.task.name, fn=names.label(start)),
+                DeprecationWarning,
+                stacklevel=2,
+            )
     x = plant.sample_states(8)
     over = np.abs(x) > plant.limits
     if over.any():

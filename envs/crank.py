@@ -139,10 +139,10 @@ def travel(system) -> dict[str, float]:
     }
 
 
-def rest_at_target(g, x, system):
+def rest_at_target(x, goal, p, system):
     """At rest at the crank angle, of the two that put the slider at the target, nearest
     the crank angle of x: bisection on each monotone branch between the dead centres."""
-    target, near = g[:, 0], x[:, 0]
+    target, near = goal.x_star, x.theta
     grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
     xs = slider(system, grid)[0]
     roots = []
@@ -159,7 +159,7 @@ def rest_at_target(g, x, system):
     roots = np.stack(roots, axis=1)
     pick = np.abs(wrap(roots - near[:, None])).argmin(axis=1)
     theta = roots[np.arange(len(target)), pick]
-    return np.stack([theta, np.zeros_like(theta)], axis=1)
+    return {"theta": theta}
 
 
 def slider_x(x, a, goal, p):
@@ -171,8 +171,8 @@ def slider_v(x, a, goal, p):
 
 
 def start(rng, p):
-    x = np.array([rng.uniform(-np.pi, np.pi), rng.uniform(-0.5, 0.5)])
-    return x, np.array([rng.uniform(p.target_lo, p.target_hi)])
+    x = {"theta": rng.uniform(-np.pi, np.pi), "theta_dot": rng.uniform(-0.5, 0.5)}
+    return x, {"x*": rng.uniform(p.target_lo, p.target_hi)}
 
 
 def draw(surface, x, g, p, history):

@@ -172,10 +172,17 @@ def failure(x, a, goal, p):
 
 
 def rolling_state(theta, phi, thetad, phid, speed, radius):
-    """States at the origin rolling at `speed` with the given angles and rates (arrays)."""
-    z = np.zeros_like(speed)
-    cols = [z, z, theta, phi, z, speed * np.sin(phi), speed * np.cos(phi), thetad, phid]
-    return np.stack(cols + [-speed / radius], axis=-1)
+    """States at the origin rolling at `speed` with the given angles and rates, by name
+    (the other components 0; values or arrays)."""
+    return {
+        "theta": theta,
+        "phi": phi,
+        "x_dot": speed * np.sin(phi),
+        "z_dot": speed * np.cos(phi),
+        "theta_dot": thetad,
+        "phi_dot": phid,
+        "psi_dot": -speed / radius,
+    }
 
 
 def start(rng, p):
@@ -184,14 +191,14 @@ def start(rng, p):
     phi = heading + rng.uniform(-np.pi / 4, np.pi / 4)
     theta = np.pi / 2 + rng.uniform(-0.05, 0.05)
     thetad, phid = rng.uniform(-0.1, 0.1, 2)
-    return rolling_state(theta, phi, thetad, phid, speed, p.r), np.array([speed, heading])
+    return rolling_state(theta, phi, thetad, phid, speed, p.r), {"v*": speed, "phi*": heading}
 
 
-def upright_rolling(g, x, system):
+def upright_rolling(x, goal, p):
     """Upright straight rolling at v* along phi*: a steady motion (theta = pi/2, phi' = 0,
     psi' = -v*/r, cyclic coordinates 0); it needs no torque."""
-    z = np.zeros(len(g))
-    return rolling_state(z + np.pi / 2, g[:, 1], z, z, g[:, 0], system.parameters["r"])
+    z = np.zeros(len(goal.v_star))
+    return rolling_state(z + np.pi / 2, goal.phi_star, z, z, goal.v_star, p.r)
 
 
 def spin_limit(p):

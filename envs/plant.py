@@ -27,6 +27,7 @@ import numpy as np
 
 from . import checks, observation, starts
 from .checks import real_array
+from .names import operating_state as call_operating_point
 from .observation import Observation, compile_observation
 from .perturb import Perturbations
 from .randomize import Randomization, observed
@@ -233,8 +234,8 @@ class Plant:
                 "heuristics need one (a dict {coordinate: value or goal name} or a function)."
             )
         g, x = np.atleast_2d(g), np.atleast_2d(x)
-        if callable(op):
-            return np.asarray(op(g, x, self.system), dtype=np.float64).reshape(len(g), -1)
+        if callable(op):  # either form (envs.names.operating_state)
+            return call_operating_point(op, self, g, x)
         x0 = np.zeros((len(g), len(self.state_names)))
         for name, value in op.items():
             i = self.state_names.index(name)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import checked_rows
+from .names import start_values
 from .task import resolve
 
 
@@ -13,24 +14,30 @@ def sample_start(plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarra
     """One starting state and goal from the task's start distribution (checked)."""
     start = plant.task.start
     if callable(start):
-        x, g = start(rng, plant.p)
-        x, g = np.asarray(x, dtype=np.float64), np.asarray(g, dtype=np.float64)
-        n_x, n_g = len(plant.state_names), len(plant.goal_names)
-        if (
-            x.shape != (n_x,)
-            or g.shape != (n_g,)
-            or not (np.isfinite(x).all() and np.isfinite(g).all())
-        ):
-            raise ValueError(
-                f"Task {plant.task.name!r}: `start` must return a finite state of shape "
-                f"({n_x},) and goal of shape ({n_g},); got {x.tolist()} and {g.tolist()}."
-            )
-        return x, g
+        return drawn_start(plant, rng)[:2]
     x = np.zeros(len(plant.state_names))
     for name, (lo, hi) in start.items():
         x[plant.state_names.index(name)] = rng.uniform(resolve(lo, plant.p), resolve(hi, plant.p))
     g = np.array([rng.uniform(lo, hi) for lo, hi in zip(plant.goal_low, plant.goal_high)])
     return x, g
+
+
+def drawn_start(plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(x, g, named): one draw of a start function, in either form (`envs.names`), checked;
+    `named` tells its form."""
+    start = plant.task.start
+    x, g, named = start_values(plant, start(rng, plant.p), rng)
+    n_x, n_g = len(plant.state_names), len(plant.goal_names)
+    if (
+        x.shape != (n_x,)
+        or g.shape != (n_g,)
+        or not (np.isfinite(x).all() and np.isfinite(g).all())
+    ):
+        raise ValueError(
+            f"Task {plant.task.name!r}: `start` must return a finite state of shape "
+            f"({n_x},) and goal of shape ({n_g},); got {x.tolist()} and {g.tolist()}."
+        )
+    return x, g, named
 
 
 def sample_rows(plant, k: int, outputs: bool) -> tuple[np.ndarray, np.ndarray]:

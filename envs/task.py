@@ -178,12 +178,15 @@ class Task:
     failure: states that end the episode as failed (terminated), or None.
     goal: the goal's components (`Goal`); () for a task without one.
     start: uniform half-ranges {state name: (low, high)} (others 0; goals uniform over
-        their ranges), or a function (rng, p) -> (x, g) for one row.
+        their ranges), or a function (rng, p) -> ({state: value}, {goal: value}) for one
+        row (states left out 0, goals left out uniform; see `envs.names`).
     limits: {state name: bound on |value|}; beyond it, or non-finite, the run diverged.
     outputs: model outputs appended to the rows x the task functions see.
     constants: function of the compiled System -> {name: float}, added to p.
     operating_point: what the task regulates to: {coordinate: number or goal name}
-        (rates 0, other coordinates 0), or a function (g, x, system) -> x0 rows.
+        (rates 0, other coordinates 0), or a function (x, goal, p) -> {state: value or
+        (N,) array} of all rows (others 0; `(x, goal, p, system)` to get the compiled
+        model; see `envs.names`). Both functions are tried when the env is made.
     lqr, heuristic, algo, hyperparams: what agents use (hyperparams by algorithm name,
         in the format of agents/hyperparams/<algo>.yml).
     randomize: the model parameters each copy draws by default (the forms of the env

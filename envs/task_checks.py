@@ -155,7 +155,8 @@ def _check_goal_start_limits(task, Goal) -> None:
         raise _fail(
             name,
             "start",
-            f"must be {{state: (low, high)}} or a function (rng, p) -> (x, g); got {task.start!r}.",
+            "must be {state: (low, high)} or a function (rng, p) -> ({state: value}, "
+            f"{{goal: value}}); got {task.start!r}.",
         )
     if not isinstance(task.limits, Mapping):
         raise _fail(name, "limits", f"must be {{state: bound}}, got {task.limits!r}.")

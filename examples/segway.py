@@ -115,15 +115,21 @@ def segway() -> ModelSpec:
     )
 
 
-def riding(g, x, system):
+def riding(x, goal, p):
     """Upright, riding straight at v* along the current heading: a steady motion (the
     cyclic coordinates as they are), which needs no torque."""
-    r = system.parameters["r"]
-    v, psi = g[:, 0], x[:, 2]
-    x0 = np.array(x, dtype=np.float64).reshape(len(g), 12).copy()
-    x0[:, 3] = 0.0  # theta
-    x0[:, 6:] = np.stack([v * np.cos(psi), v * np.sin(psi), 0 * v, 0 * v, v / r, v / r], 1)
-    return x0
+    v, psi = goal.v_star, x.psi
+    return {  # theta and the rates of psi and theta 0
+        "x": x.x,
+        "y": x.y,
+        "psi": psi,
+        "phi_l": x.phi_l,
+        "phi_r": x.phi_r,
+        "x_dot": v * np.cos(psi),
+        "y_dot": v * np.sin(psi),
+        "phi_l_dot": v / p.r,
+        "phi_r_dot": v / p.r,
+    }
 
 
 def speed_error(x, a, goal, p):

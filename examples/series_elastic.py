@@ -78,15 +78,11 @@ def series_elastic() -> ModelSpec:
     )
 
 
-def holding(g, x, system):
+def holding(x, goal, p):
     """The link at rest at theta*, the motor turned ahead of it by the spring's deflection
     that carries the link's weight: theta_m = theta* + m g l sin(theta*) / (2 k)."""
-    p = system.parameters
-    target = g[:, 0]
-    x0 = np.zeros((len(g), 4))
-    x0[:, 0] = target + p["m"] * p["g"] * p["l"] * np.sin(target) / (2 * p["k"])
-    x0[:, 1] = target
-    return x0
+    target = goal.theta_star
+    return {"theta_m": target + p.m * p.g * p.l * np.sin(target) / (2 * p.k), "theta": target}
 
 
 def angle(x, a, goal, p):

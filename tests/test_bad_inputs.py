@@ -45,11 +45,43 @@ def _vec_reset(env_id, n, **kw):
 
 
 def _start_far_out(rng, p):
-    return np.array([10.0, 0.0, 0.0, 0.0]), np.zeros(0)
+    return {"x": 10.0}, {}
 
 
-def _nan_point(g, x, system):
-    return np.full((len(x), 4), np.nan)
+def _nan_point(x, goal, p):
+    return {"x": np.nan}
+
+
+def _start_typo(rng, p):
+    return {"x": rng.uniform(-0.1, 0.1) * p.m_pol}, {}  # p.m_pole misspelt
+
+
+def _start_unknown_state(rng, p):
+    return {"thetaa": 0.1}, {}
+
+
+def _point_typo(x, goal, p):
+    return {"x": x.xx}
+
+
+def _point_unknown_state(x, goal, p):
+    return {"theta_dott": 0.0}
+
+
+def _former_start(rng, p):  # the former form: arrays (x, g)
+    return np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.1, 0.1), 0.0, 0.0]), np.zeros(0)
+
+
+def _named_start(rng, p):
+    return {"x": rng.uniform(-0.5, 0.5), "theta": rng.uniform(-0.1, 0.1)}, {}
+
+
+def _former_holding(g, x, system):  # examples/series_elastic.py's function before names
+    q = system.parameters
+    x0 = np.zeros((len(g), 4))
+    x0[:, 0] = g[:, 0] + q["m"] * q["g"] * q["l"] * np.sin(g[:, 0]) / (2 * q["k"])
+    x0[:, 1] = g[:, 0]
+    return x0
 
 
 def _x_star():
@@ -297,6 +329,26 @@ MODELS = {
         DeclarationError,
         ["`operating_point`", "NaN or inf"],
     ),
+    "a start function's slip": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, start=_start_typo)),
+        DeclarationError,
+        ["`start`", "function _start_typo", "fails on a sample draw", "Did you mean 'm_pole'"],
+    ),
+    "a start function naming an unknown state": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, start=_start_unknown_state)),
+        DeclarationError,
+        ["`start`", "unknown state 'thetaa'", "Did you mean 'theta'"],
+    ),
+    "an operating-point function's slip": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_point_typo)),
+        DeclarationError,
+        ["`operating_point`", "function _point_typo", "(x, goal, p)", "'xx'", "Did you mean 'x'"],
+    ),
+    "an operating-point function naming an unknown state": (
+        lambda: envs.LagrangianEnv(dataclasses.replace(BASE, operating_point=_point_unknown_state)),
+        DeclarationError,
+        ["`operating_point`", "unknown state 'theta_dott'", "Did you mean 'theta_dot'"],
+    ),
     "a goal the operating point needs, unobserved": (
         lambda: envs.LagrangianEnv(_x_star()),
         DeclarationError,
@@ -312,6 +364,40 @@ def test_a_user_s_model_slip_is_named_in_one_line(case):
         make()
     for w in words:
         assert w in str(info.value), (w, str(info.value))
+    assert "\n" not in str(info.value)
+
+
+def test_named_start_and_operating_point_functions_need_no_warning():
+    from examples import series_elastic
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        env = envs.LagrangianEnv(dataclasses.replace(BASE, start=_named_start))
+        series = envs.LagrangianEnv(series_elastic.TASK)
+    env.reset(seed=0)
+    assert abs(env.state[0]) <= 0.5 and abs(env.state[1]) <= 0.1 and not env.state[2:].any()
+    series.reset(seed=0)
+    x0, _ = series.operating_point()
+    t = series._rt.G[0, 0]  # the link at theta*, the spring wound to carry its weight
+    assert x0[1] == t and (x0[0] - t) * np.sin(t) > 0 and not x0[2:].any()
+
+
+def test_former_start_and_operating_point_functions_warn_and_still_work():
+    """The former array forms draw and regulate exactly as the named ones do (the same
+    generator calls and arithmetic, so equal to the bit)."""
+    from examples import series_elastic
+
+    with pytest.warns(DeprecationWarning, match="_former_start returns arrays"):
+        former = envs.LagrangianEnv(dataclasses.replace(BASE, start=_former_start))
+    named = envs.LagrangianEnv(dataclasses.replace(BASE, start=_named_start))
+    assert np.array_equal(former.reset(seed=4)[0], named.reset(seed=4)[0])
+    task = dataclasses.replace(series_elastic.TASK, operating_point=_former_holding)
+    with pytest.warns(DeprecationWarning, match="_former_holding takes the former form"):
+        former = envs.LagrangianEnv(task)
+    named = envs.LagrangianEnv(series_elastic.TASK)
+    former.reset(seed=2), named.reset(seed=2)
+    for a, b in zip(former.operating_point(), named.operating_point()):
+        assert np.array_equal(a, b)
 
 
 def test_every_factory_form_builds_the_model():

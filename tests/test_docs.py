@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import re
 import sys
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -47,6 +48,14 @@ def _the_next_steps_work_as_the_page_says():
     assert obs[5] == pytest.approx(goal) and obs[6] == pytest.approx(x[0] - goal, abs=1e-6)
     x0, _ = env.unwrapped.operating_point()
     assert x0[0] == pytest.approx(goal)  # the operating point follows the goal
+
+    with warnings.catch_warnings():  # the named start and operating point: no former form
+        warnings.simplefilter("error", DeprecationWarning)
+        env = gym.make("MyNS/CartPoleNearTarget-v0")
+    _, info = env.reset(seed=2)
+    goal, x = float(info["goal"][0]), env.unwrapped.state
+    assert abs(x[0] - goal) <= 0.5 and abs(x[1]) <= 0.1 and not x[2:].any()
+    assert env.unwrapped.operating_point()[0][0] == goal
 
     env = gym.make("MyNS/CartPoleThruster-v0")
     obs, info = env.reset(seed=0)

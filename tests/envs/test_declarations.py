@@ -123,7 +123,7 @@ MALFORMED_AT_MAKE = {
     "typo in a column name": (_swap(terms=_term(typo_column)), "term 'upright' (typo_column)"),
     "edits its input": (_swap(terms=_term(in_place)), "writes into its inputs"),
     "start function NaN": (
-        _swap(start=lambda rng, p: (np.full(4, np.nan), np.zeros(0))),
+        _swap(start=lambda rng, p: ({"x": np.nan}, {})),
         "`start` must return a finite state",
     ),
 }
