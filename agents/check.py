@@ -29,7 +29,7 @@ from pathlib import Path
 from envs.checks import Unsupported
 
 from . import evaluate as programs
-from . import hparams, learned, randomization
+from . import hparams, learned, params, randomization
 from .budget import budget_arg
 from .common import (
     DEFAULT_TORCH_THREADS,
@@ -142,7 +142,7 @@ def check_env(
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
     budget = budget_of(env_id, algo, timesteps, hyperparams)
-    tag = randomization.tag(randomize)
+    tag = randomization.tag(randomize) + params.tag(env_id)
     run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
     if seconds:
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
@@ -187,7 +187,8 @@ def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomi
         hp = load_hyperparams(name, env_id, hyperparams)
         if randomize is not None:
             hp["randomize"] = randomize
-        run_dir = run_dir_of(out, env_id, name, seed, budget, randomization.tag(randomize))
+        tag = randomization.tag(randomize) + params.tag(env_id)
+        run_dir = run_dir_of(out, env_id, name, seed, budget, tag)
         check_earlier_run(run_dir, budget, hp)
         check_fingerprint(run_dir, env_id)
 
@@ -198,12 +199,12 @@ def report_dir(
     """Where an invocation's report goes: `out` itself for the default set (every built-in
     env) with the tasks' budgets, else a directory of its own under `out` named by the env
     ids (or 'all') and the budget asked for (--timesteps N: '_Nsteps'; --budget S: '_Ss';
-    --randomize: its tag), so that checking systems one by one, or one system with another
-    budget, never overwrites another invocation's report (the same command again updates
-    its own). The trained runs are shared (out/train), so each is trained once whichever
-    report uses it."""
+    --randomize and --params: their tags), so that checking systems one by one, or one
+    system with another budget, never overwrites another invocation's report (the same
+    command again updates its own). The trained runs are shared (out/train), so each is
+    trained once whichever report uses it."""
     suffix = f"_{seconds:g}s" if seconds else f"_{timesteps}steps" if timesteps else ""
-    suffix += randomization.tag(randomize)
+    suffix += randomization.tag(randomize) + params.tag(env_ids or register_envs())
     if not env_ids and not suffix:
         return out
     return out / (("+".join(env_slug(e) for e in env_ids) if env_ids else "all") + suffix)
@@ -329,6 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
         "budget starts a fresh run and keeps the earlier one, and a run of the same budget "
         "with other hyperparameters is refused with a message",
     )
+    params.add_option(parser)
     randomization.add_option(
         parser, "the training envs", "; the run trains in a directory of its own, and every "
         "agent is scored on the nominal env",
@@ -345,25 +347,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
         randomize = randomization.parse_option(args.randomize)
+        values = params.load_for(args.params, env_ids or register_envs())
         if args.hyperparams is not None:
             for env_id in env_ids or register_envs():
                 hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
     except ValueError as exc:
         fail(parser, exc)
     try:
-        run_check(
-            env_ids,
-            args.algo,
-            args.episodes,
-            args.seed,
-            args.out,
-            args.timesteps,
-            args.fresh,
-            not args.no_progress,
-            args.hyperparams,
-            randomize,
-            args.budget,
-        )
+        with params.applied_all(values):
+            run_check(
+                env_ids, args.algo, args.episodes, args.seed, args.out, args.timesteps,
+                args.fresh, not args.no_progress, args.hyperparams, randomize, args.budget,
+            )  # fmt: skip
     except UserError as exc:
         fail(parser, exc)
     except TrainingInterrupted as stopped:
