@@ -29,7 +29,7 @@ from pathlib import Path
 from envs.checks import Unsupported
 
 from . import evaluate as programs
-from . import hparams, learned, randomization
+from . import hparams, learned, params, randomization
 from .budget import budget_arg
 from .common import (
     DEFAULT_TORCH_THREADS,
@@ -49,6 +49,7 @@ from .evaluate import BASELINES, heuristic_of
 from .fingerprint import check_fingerprint
 from .hparams import ALGOS, load_hyperparams
 from .report import (
+    Refused,
     Row,
     Training,
     findings,
@@ -111,18 +112,23 @@ def check_env(
     randomize: dict | None = None,
     seconds: float | None = None,
     diagnoses: list | None = None,
+    refused: list | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
     named in the rows relative to `report`, the report's directory; default `out`). The
     agent trains with `randomize` (agents.randomization) if given; every agent is scored
     on the nominal env. seconds: a wall-clock budget (agents.budget) instead of steps;
-    diagnoses: a list the lines of a failed agent's diagnosis are appended to."""
+    diagnoses: a list the lines of a failed agent's diagnosis are appended to; refused: a
+    list each agent not run is appended to (`Refused`, with its one-line reason)."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
-    rows = []
+    rows, refused = [], [] if refused is None else refused
     for name in BASELINES:
-        if (name == "heuristic" and heuristic is None) or (name == "plan" and not plans):
+        undeclared = {"heuristic": heuristic is None, "plan": not plans}.get(name)
+        if undeclared:  # not declared: the task says where it pays
+            what = "trajectory plan (hyperparams['plan'])" if name == "plan" else name
+            refused.append(Refused(env_id, name, f"the task declares no {what}"))
             continue
         try:
             stats, eval_s, warm_s = learned.warm_evaluate(
@@ -130,12 +136,13 @@ def check_env(
             )
         except Unsupported as exc:  # it would be wrong here, and says why
             log(f"  {name:>9}: refused: {exc}")
+            refused.append(Refused(env_id, name, f"refused: {' '.join(str(exc).split())}"))
             continue
         note = heuristic.description if name == "heuristic" else ""
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
     budget = budget_of(env_id, algo, timesteps, hyperparams)
-    tag = randomization.tag(randomize)
+    tag = randomization.tag(randomize) + params.tag(env_id)
     run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
     if seconds:
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
@@ -180,19 +187,27 @@ def check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomi
         hp = load_hyperparams(name, env_id, hyperparams)
         if randomize is not None:
             hp["randomize"] = randomize
-        run_dir = run_dir_of(out, env_id, name, seed, budget, randomization.tag(randomize))
+        tag = randomization.tag(randomize) + params.tag(env_id)
+        run_dir = run_dir_of(out, env_id, name, seed, budget, tag)
         check_earlier_run(run_dir, budget, hp)
         check_fingerprint(run_dir, env_id)
 
 
-def report_dir(out: Path, env_ids: list[str] | None) -> Path:
+def report_dir(
+    out: Path, env_ids: list[str] | None, timesteps=None, seconds=None, randomize=None
+) -> Path:
     """Where an invocation's report goes: `out` itself for the default set (every built-in
-    env), else a directory of its own under `out` named by the env ids, so that checking
-    systems one by one never overwrites another invocation's report. The trained runs are
-    shared (out/train), so each is trained once whichever report uses it."""
-    if not env_ids:
+    env) with the tasks' budgets, else a directory of its own under `out` named by the env
+    ids (or 'all') and the budget asked for (--timesteps N: '_Nsteps'; --budget S: '_Ss';
+    --randomize and --params: their tags), so that checking systems one by one, or one
+    system with another budget, never overwrites another invocation's report (the same
+    command again updates its own). The trained runs are shared (out/train), so each is
+    trained once whichever report uses it."""
+    suffix = f"_{seconds:g}s" if seconds else f"_{timesteps}steps" if timesteps else ""
+    suffix += randomization.tag(randomize) + params.tag(env_ids or register_envs())
+    if not env_ids and not suffix:
         return out
-    return out / "+".join(env_slug(e) for e in env_ids)
+    return out / (("+".join(env_slug(e) for e in env_ids) if env_ids else "all") + suffix)
 
 
 def run_check(
@@ -219,7 +234,7 @@ def run_check(
         raise ValueError("No environments to check: the `envs` package registers none.")
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
-    report = report_dir(out, [check_env_id(e) for e in given])
+    report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
     fresh = fresh or bool(seconds)
     if not fresh:
         check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
@@ -233,21 +248,23 @@ def run_check(
     start = time.perf_counter()
     rows: list[Row] = []
     diagnoses: list[str] = []
+    refused: list[Refused] = []
     for i, env_id in enumerate(env_ids, 1):
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
             env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
-            report, randomize, seconds, diagnoses,
+            report, randomize, seconds, diagnoses, refused,
         )  # fmt: skip
     total = time.perf_counter() - start
     diagnosis = "".join(f"- {line}\n" for line in diagnoses)
     diagnosis = diagnosis and f"\n## Where the trained agents missed\n\n{diagnosis}"
-    write_atomic(report / "results.md", report_text(rows, episodes, seed, total) + diagnosis)
-    write_csv(rows, report / "results.csv")
+    text = report_text(rows, episodes, seed, total, refused) + diagnosis
+    write_atomic(report / "results.md", text)
+    write_csv(rows, report / "results.csv", refused)
     plot_comparison(rows, report / "comparison.png")
     print("\n".join(f"- {line}" for line in training_lines(rows)) + "\n")
-    print(markdown_table(rows) + "\n")
+    print(markdown_table(rows, refused) + "\n")
     print("\n".join(f"- {line}" for line in findings(rows)))
     print(f"\nTotal wall time {total:.0f} s. Report, CSV and plot in {report}/")
     return rows
@@ -299,7 +316,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         default="runs/check",
         help="output directory: trained runs in OUT/train; the report in OUT for the default "
-        "set of envs, in OUT/ENV (ids joined by '+') for the envs given",
+        "set of envs and budgets, else in a directory of its own named by the envs given "
+        "(ids joined by '+', or 'all') and the budget asked for: OUT/ENV, OUT/ENV_5000steps "
+        "(--timesteps), OUT/ENV_90s (--budget), OUT/all_5000steps; so a check with another "
+        "budget keeps the earlier report beside it, and the same command again updates its own",
     )
     parser.add_argument(
         "--fresh",
@@ -310,6 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
         "budget starts a fresh run and keeps the earlier one, and a run of the same budget "
         "with other hyperparameters is refused with a message",
     )
+    params.add_option(parser)
     randomization.add_option(
         parser, "the training envs", "; the run trains in a directory of its own, and every "
         "agent is scored on the nominal env",
@@ -326,25 +347,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
         randomize = randomization.parse_option(args.randomize)
+        values = params.load_for(args.params, env_ids or register_envs())
         if args.hyperparams is not None:
             for env_id in env_ids or register_envs():
                 hparams.load(args.algo or hparams.check_algo(env_id), env_id, args.hyperparams)
     except ValueError as exc:
         fail(parser, exc)
     try:
-        run_check(
-            env_ids,
-            args.algo,
-            args.episodes,
-            args.seed,
-            args.out,
-            args.timesteps,
-            args.fresh,
-            not args.no_progress,
-            args.hyperparams,
-            randomize,
-            args.budget,
-        )
+        with params.applied_all(values):
+            run_check(
+                env_ids, args.algo, args.episodes, args.seed, args.out, args.timesteps,
+                args.fresh, not args.no_progress, args.hyperparams, randomize, args.budget,
+            )  # fmt: skip
     except UserError as exc:
         fail(parser, exc)
     except TrainingInterrupted as stopped:

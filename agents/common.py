@@ -145,3 +145,20 @@ def non_negative_int(text: str) -> int:
 def env_slug(env_id: str) -> str:
     """A file-system name for an environment id ('Lagrange/Acrobot-v2' -> 'Lagrange-Acrobot-v2')."""
     return env_id.replace("/", "-").replace(":", "-")
+
+
+def trained_line(algo: str, env_id: str, result) -> str:
+    """agents.train's last line: steps, time, the last evaluation, when solved, the model."""
+    rate = "" if result.success_rate is None else f", success {result.success_rate:.0%}"
+    evaluation = (
+        "no evaluation"
+        if result.eval_mean is None
+        else f"last evaluation {result.eval_mean:.1f} (sd {result.eval_std:.1f}){rate}"
+    )
+    solved, when = result.solved, ""
+    if solved:
+        when = f" Solved after {solved['seconds']:.0f} s, {solved['timesteps']} steps."
+    return (
+        f"{algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "
+        f"{evaluation}.{when} Model: {result.model_path}"
+    )

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import gymnasium as gym
 
+from . import params
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -165,6 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--episodes", type=positive_int, default=20)
     parser.add_argument("--seed", type=non_negative_int, default=0)
+    params.add_option(parser)
     parser.add_argument("--video", metavar="DIR", help="record the first episode to DIR (mp4)")
     parser.add_argument("--stochastic", action="store_true", help="sample trained policies")
     from .randomization import add_option
@@ -193,13 +195,15 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         randomize = parse_option(args.randomize)
-        stats = evaluate(
-            env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic,
-            randomize,
-        )  # fmt: skip
+        with params.applied(env_id, args.params and params.load(args.params, env_id)):
+            stats = evaluate(
+                env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic,
+                randomize,
+            )  # fmt: skip
     except (ValueError, FileNotFoundError) as exc:
         fail(parser, exc)
     where = f" ({describe(randomize)})" if randomize else ""
+    where += f" (parameters from {args.params})" if args.params else ""
     print(f"{args.agent} on {env_id}{where}: {stats.summary()}")
     if args.video:
         print(f"Video in {args.video}")

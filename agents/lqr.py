@@ -9,6 +9,7 @@ import sys
 import gymnasium as gym
 import numpy as np
 
+from . import params
 from .closed_loop import evaluate_near, expected_region, largest_region, perturbed_starts
 from .common import (
     UserError,
@@ -142,10 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "env_id", help="a Lagrange env id, e.g. Lagrange/Acrobot-v2, or module:NS/Env-v0"
     )
-    parser.add_argument(
-        "--episodes", type=positive_int, default=100, help="seeded episodes (100)"
-    )
+    parser.add_argument("--episodes", type=positive_int, default=100, help="seeded episodes (100)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="first seed (0)")
+    params.add_option(parser)
     parser.add_argument("--scale", type=float, default=1.0, help="multiple of the start region")
     parser.add_argument("--plot", metavar="FILE", help="save the closed-loop response here")
     parser.add_argument(
@@ -170,7 +170,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.plot:
             check_output_file(args.plot, "--plot")
-        return run(args)
+        env_id = check_env_id(args.env_id, lagrange=True)
+        with params.applied(env_id, args.params and params.load(args.params, env_id)):
+            return run(args)
     except UncontrollableError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

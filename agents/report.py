@@ -98,6 +98,16 @@ class Row:
     warmup_s: float = 0.0  # the untimed first episode: one-off compilation and loading
 
 
+@dataclass(frozen=True)
+class Refused:
+    """An agent not scored on an env, and why: it refused (LQR on a time-dependent model),
+    or the task declares none (no heuristic, no plan)."""
+
+    env_id: str
+    agent: str
+    reason: str
+
+
 def beats(a: EvalStats, b: EvalStats) -> bool:
     """A's success interval above B's, or (those overlapping) A's return interval above B's."""
     sa, sb = success_interval(a), success_interval(b)
@@ -166,20 +176,25 @@ def findings(rows: list[Row]) -> list[str]:
 
 
 # ---- table, header and CSV ---------------------------------------------------------------
-def markdown_table(rows: list[Row]) -> str:
+def markdown_table(rows: list[Row], refused: list[Refused] = ()) -> str:
+    """The table; each env's `refused` agents follow its rows, with their reason."""
     endings = " | ".join(f"ended: {e}" if e == ENDINGS[0] else e for e in ENDINGS)
     lines = [
         f"| environment | agent | success [95 % CI] | return [95 % CI] | {endings} | "
         "length | eval (s) | train (s) | note |",
         "|---|---|---|---|" + "---|" * len(ENDINGS) + "---|---|---|---|",
     ]
-    for r in rows:
-        counts = " | ".join(str(n) for n in r.stats.endings().values())
-        train = "" if r.training is None else f"{r.training.train_s:.1f}"
-        lines.append(
-            f"| {r.env_id} | {r.agent} | {_pct(r.stats)} | {_ret(r.stats)} | {counts} | "
-            f"{r.stats.mean_length:.0f} | {r.eval_s:.2f} | {train} | {r.note} |"
-        )
+    for env_id in dict.fromkeys([r.env_id for r in rows] + [r.env_id for r in refused]):
+        for r in (r for r in rows if r.env_id == env_id):
+            counts = " | ".join(str(n) for n in r.stats.endings().values())
+            train = "" if r.training is None else f"{r.training.train_s:.1f}"
+            lines.append(
+                f"| {r.env_id} | {r.agent} | {_pct(r.stats)} | {_ret(r.stats)} | {counts} | "
+                f"{r.stats.mean_length:.0f} | {r.eval_s:.2f} | {train} | {r.note} |"
+            )
+        for r in (r for r in refused if r.env_id == env_id):
+            why, blank = " ".join(r.reason.split()).replace("|", "\\|"), " |" * (len(ENDINGS) + 4)
+            lines.append(f"| {r.env_id} | {r.agent} | not run |{blank} {why} |")
     return "\n".join(lines)
 
 
@@ -205,7 +220,8 @@ CSV_FIELDS = (
 ).split()
 
 
-def write_csv(rows: list[Row], path: Path) -> None:
+def write_csv(rows: list[Row], path: Path, refused: list[Refused] = ()) -> None:
+    """The rows, then the `refused` agents (no numbers; the note 'not run: REASON')."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(CSV_FIELDS)
@@ -222,6 +238,9 @@ def write_csv(rows: list[Row], path: Path) -> None:
             + [f"{v:.2f}" if isinstance(v, float) else v for v in train]
             + [r.note]
         )
+    for r in refused:
+        empty = [""] * (len(CSV_FIELDS) - 3)
+        writer.writerow([r.env_id, r.agent] + empty + [f"not run: {' '.join(r.reason.split())}"])
     write_atomic(path, buf.getvalue())
 
 
@@ -342,8 +361,11 @@ def _return_panel(ax, mine: list[Row], colours: dict[str, str]) -> None:
     ax.grid(axis="x", alpha=0.3)
 
 
-def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str:
-    """The Markdown report: what was run and how it is scored, the table, the findings."""
+def report_text(
+    rows: list[Row], episodes: int, seed: int, wall_s: float, refused: list[Refused] = ()
+) -> str:
+    """The Markdown report: what was run and how it is scored, the table (with the agents
+    that were not run, and why), the findings."""
     trained = "\n".join(f"- {line}" for line in training_lines(rows))
     runs = [r.training for r in rows if r.training is not None]
     train_s, now_s = sum(t.train_s for t in runs), sum(t.now_s for t in runs)
@@ -372,6 +394,6 @@ def report_text(rows: list[Row], episodes: int, seed: int, wall_s: float) -> str
         "(one untimed episode per agent first: numba kernels compiled or loaded, LQR "
         "designed, models loaded; counted in neither); this run of the job took "
         f"{wall_s:.0f} s.\n\n"
-        f"{markdown_table(rows)}\n\n## Findings\n\n{notes}\n\n"
+        f"{markdown_table(rows, refused)}\n\n## Findings\n\n{notes}\n\n"
         "![comparison](comparison.png)\n"
     )

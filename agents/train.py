@@ -30,7 +30,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
 from . import budget as budgets
-from . import randomization
+from . import params, randomization
 from .callbacks import (
     AtomicCheckpoint,
     EvaluationStopped,
@@ -48,6 +48,7 @@ from .common import (
     non_negative_int,
     positive_int,
     set_torch_threads,
+    trained_line,
     write_atomic,
 )
 from .curves import CurveLogger
@@ -145,6 +146,8 @@ def train(
         randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
     elif resume:  # another setting would rewrite the record of what the run trained on
         check_resume_randomize(run_dir, randomize)
+    if resume:  # other --params would be recorded as if the run had always used them
+        params.check_resume(run_dir, env_id)
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing
@@ -163,8 +166,7 @@ def train(
             "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
-        if env_options:  # what the setting meant for this env: absolute ranges, model units
-            config["env_options"] = {"randomize": randomization.recorded(env_options["randomize"])}
+        config.update(params.record(env_id, env_options))  # randomize's ranges, --params
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq or budgets.budget_eval_freq(total, hp["n_timesteps"], budget),
@@ -290,6 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="YAML file in the format of agents/hyperparams/<algo>.yml; its entries override",
     )
     parser.add_argument("--run-dir", help="output directory (default runs/train/ENV/ALGO_seedS)")
+    params.add_option(parser)
     randomization.add_option(
         parser, "the training envs", "; overrides the hyperparameter `randomize`"
     )
@@ -342,26 +345,27 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     try:
         randomize = randomization.parse_option(args.randomize)
-        result = train(
-            env_id,
-            args.algo,
-            args.timesteps,
-            args.seed,
-            args.n_envs,
-            args.run_dir,
-            args.resume,
-            args.eval_freq,
-            args.eval_episodes or (20 if args.budget else 10),
-            args.checkpoint_freq,
-            args.vectorization,
-            progress=not args.no_progress,
-            threads=args.threads,
-            hyperparams=args.hyperparams,
-            overwrite=args.overwrite,
-            allow_missing_buffer=args.allow_missing_buffer,
-            randomize=randomize,
-            budget=args.budget,
-        )
+        with params.applied(env_id, args.params and params.load(args.params, env_id)):
+            result = train(
+                env_id,
+                args.algo,
+                args.timesteps,
+                args.seed,
+                args.n_envs,
+                args.run_dir,
+                args.resume,
+                args.eval_freq,
+                args.eval_episodes or (20 if args.budget else 10),
+                args.checkpoint_freq,
+                args.vectorization,
+                progress=not args.no_progress,
+                threads=args.threads,
+                hyperparams=args.hyperparams,
+                overwrite=args.overwrite,
+                allow_missing_buffer=args.allow_missing_buffer,
+                randomize=randomize,
+                budget=args.budget,
+            )
     except UserError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2
@@ -380,19 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("Interrupted; nothing saved since the last checkpoint.", file=sys.stderr)
         return 130
-    rate = "" if result.success_rate is None else f", success {result.success_rate:.0%}"
-    evaluation = (
-        "no evaluation"
-        if result.eval_mean is None
-        else f"last evaluation {result.eval_mean:.1f} (sd {result.eval_std:.1f}){rate}"
-    )
-    solved, when = result.solved, ""
-    if solved:
-        when = f" Solved after {solved['seconds']:.0f} s, {solved['timesteps']} steps."
-    print(
-        f"{args.algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "
-        f"{evaluation}.{when} Model: {result.model_path}"
-    )
+    print(trained_line(args.algo, env_id, result))
     return 0
 
 

@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": machine(),
     }
     out = Path(args.out)
-    report = report_dir(out, [check_env_id(e) for e in args.envs or []])
+    report = report_dir(out, [check_env_id(e) for e in args.envs or []], args.timesteps)
     write_results(
         args.results or out / "results.json", report / "results.csv", meta, merge=bool(args.envs)
     )

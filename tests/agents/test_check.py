@@ -11,7 +11,7 @@ import yaml
 
 import envs
 from agents import train as train_mod
-from agents.check import TIME_FILE, main, record_segment, run_check
+from agents.check import TIME_FILE, build_parser, main, record_segment, run_check
 from agents.common import UserError
 
 ARM = next(env_id for env_id in envs.ENV_IDS if "/TwoLinkArm-" in env_id)
@@ -25,6 +25,11 @@ def tiny(tmp_path):
     path = tmp_path / "tiny.yml"
     path.write_text(yaml.safe_dump({ARM: {"n_envs": 1, "n_steps": 64, "batch_size": 64}}))
     return path
+
+
+def report_of(timesteps):
+    """run_check([ARM], timesteps=N)'s report directory's name (one per budget)."""
+    return f"{REPORT}_{timesteps}steps"
 
 
 def check(out, timesteps, hyperparams=None, fresh=False):
@@ -41,9 +46,11 @@ def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     rows = check(out, 128, tiny)
     # the envs given get a report of their own; the earlier report stays
     assert (out / "results.md").read_text().startswith("the report of every env")
-    report_dir, out = out, out / REPORT
+    report_dir, out = out, out / report_of(128)
     agents = [r.agent for r in rows]
     assert agents[:4] == ["random", "zero", "heuristic", "lqr"] and agents[-1] == "ppo"
+    # the agent the task does not declare is in the report with its reason, not left out
+    assert f"| {ARM} | plan | not run |" in (out / "results.md").read_text()
     printed = capsys.readouterr().out
     assert f"| {ARM} | lqr |" in printed and "lqr" in printed
     for name in ("results.md", "results.csv", "comparison.png"):
@@ -58,7 +65,8 @@ def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     assert f"Report, CSV and plot in {out}/" in printed
     assert all(sum(r.stats.endings().values()) == 2 for r in rows)
     csv_lines = (out / "results.csv").read_text().splitlines()
-    assert len(csv_lines) == 1 + len(rows)
+    assert len(csv_lines) == 1 + len(rows) + 1  # the rows, then the plan's "not run" line
+    assert csv_lines[-1].startswith(f"{ARM},plan,") and "the task declares no" in csv_lines[-1]
     # a second run reuses the finished training, and its stored training time
     again = check(report_dir, 128, tiny)
     assert again[-1].stats.returns.tolist() == rows[-1].stats.returns.tolist()
@@ -77,8 +85,13 @@ def test_another_budget_trains_a_fresh_run_and_keeps_the_earlier(tmp_path, tiny)
     assert (second.budget, second.timesteps) == (192, 192)  # trained from 0, not from 64
     assert first.run_dir != second.run_dir
     for t in (first, second):
-        assert (tmp_path / REPORT / t.run_dir / "model.zip").exists()
-    segments = json.loads((tmp_path / REPORT / second.run_dir / TIME_FILE).read_text())["segments"]
+        assert (tmp_path / report_of(t.budget) / t.run_dir / "model.zip").exists()
+    # each budget's report is kept beside the other's
+    for budget in (64, 192):
+        report = (tmp_path / report_of(budget) / "results.md").read_text()
+        assert f"PPO, {budget} steps" in report
+    time_file = tmp_path / report_of(192) / second.run_dir / TIME_FILE
+    segments = json.loads(time_file.read_text())["segments"]
     assert [(s["from"], s["to"]) for s in segments] == [(0, 192)]
 
 
@@ -96,7 +109,7 @@ def test_a_run_with_other_hyperparameters_is_refused_until_fresh(tmp_path, tiny,
     err = capsys.readouterr().err
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "--fresh" in err
     retrained = check(tmp_path, 64, changed, fresh=True)[-1].training
-    config = yaml.safe_load((tmp_path / REPORT / run.run_dir / "config.yml").read_text())
+    config = yaml.safe_load((tmp_path / report_of(64) / run.run_dir / "config.yml").read_text())
     assert retrained.run_dir == run.run_dir and config["hyperparams"]["batch_size"] == 32
 
 
@@ -146,3 +159,41 @@ def test_cli_rejects_bad_arguments(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_an_agent_that_refuses_is_reported_with_its_reason(tmp_path, tiny, monkeypatch):
+    from agents import check as check_mod
+    from envs.checks import Unsupported
+
+    scored = check_mod.learned.warm_evaluate
+
+    def lqr_refuses(evaluate, env_id, agent, episodes, seed):
+        if agent == "lqr":
+            raise Unsupported("lqr designs on the dynamics at one time,\n and this is not so")
+        return scored(evaluate, env_id, agent, episodes, seed)
+
+    monkeypatch.setattr(check_mod.learned, "warm_evaluate", lqr_refuses)
+    rows = check(tmp_path, 128, tiny)
+    assert "lqr" not in [r.agent for r in rows]
+    report = (tmp_path / report_of(128) / "results.md").read_text()
+    reason = "refused: lqr designs on the dynamics at one time, and this is not so"
+    assert f"| {ARM} | lqr | not run |" in report and f"{reason} |" in report
+    table = [line for line in report.splitlines() if line.startswith("| ")]
+    assert len({line.count("|") for line in table}) == 1  # every row has every column
+    csv_text = (tmp_path / report_of(128) / "results.csv").read_text()
+    assert f"{ARM},lqr," in csv_text and f"not run: {reason}" in csv_text
+
+
+def test_each_budget_reports_in_a_directory_of_its_own(tmp_path):
+    from agents.check import report_dir
+
+    assert report_dir(tmp_path, []) == tmp_path  # the main job's report: runs/check/
+    assert report_dir(tmp_path, [ARM]) == tmp_path / REPORT
+    assert report_dir(tmp_path, [ARM], 5000) == tmp_path / f"{REPORT}_5000steps"
+    assert report_dir(tmp_path, [ARM], None, 90.0) == tmp_path / f"{REPORT}_90s"
+    assert report_dir(tmp_path, [], 5000) == tmp_path / "all_5000steps"
+    randomized = report_dir(tmp_path, [ARM], 64, None, {"inertial": 0.25})
+    assert randomized.name == f"{REPORT}_64steps_randomized-inertial0.25"
+    assert "another budget keeps the earlier report" in " ".join(
+        build_parser().format_help().split()
+    )

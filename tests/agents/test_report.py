@@ -9,6 +9,7 @@ import pytest
 import envs
 from agents.evaluate import EvalStats, evaluate
 from agents.report import (
+    Refused,
     Row,
     Training,
     best_agents,
@@ -17,6 +18,7 @@ from agents.report import (
     markdown_table,
     mean_interval,
     plot_comparison,
+    report_text,
     training_lines,
     wilson_interval,
     write_csv,
@@ -181,6 +183,21 @@ def test_table_csv_and_header_lines(tmp_path):
     assert len(lines) == len(rows) and "success_low" in header and "n_diverged" in header
     text = "\n".join(findings(rows))
     assert "Lagrange/TwoLinkArm-v1:\n  - best, not resolved between them" in text
+
+
+def test_agents_not_run_are_in_the_table_and_csv_with_their_reason(tmp_path):
+    rows = rows_like_the_arm()
+    refused = [Refused("Lagrange/TwoLinkArm-v1", "plan", "the task declares no | plan\nhere")]
+    table = markdown_table(rows, refused).splitlines()
+    cells = {line.replace("\\|", "").count("|") for line in table}  # an escaped | is no cell
+    assert len(cells) == 1  # every row has every column
+    arm = [i for i, line in enumerate(table) if "TwoLinkArm" in line]
+    assert table[arm[-1]].startswith("| Lagrange/TwoLinkArm-v1 | plan | not run |")
+    assert table[arm[-1]].endswith(" the task declares no \\| plan here |")  # after its env
+    write_csv(rows, tmp_path / "r.csv", refused)
+    last = (tmp_path / "r.csv").read_text().splitlines()[-1]
+    assert last.startswith("Lagrange/TwoLinkArm-v1,plan,,") and "not run: the task" in last
+    assert "| plan | not run |" in report_text(rows, 20, 0, 1.0, refused)
 
 
 def test_comparison_figure_is_written(tmp_path):
