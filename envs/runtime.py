@@ -71,7 +71,9 @@ def compile_task_function(fn, args):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", numba.NumbaWarning)
                 jitted = numba.njit(cache=cache, boundscheck=True)(fn)
-                jitted(*args)
+                signature = tuple(_as_fused(numba.typeof(a)) for a in args)
+                jitted.compile(signature)  # the types the fused step calls it with
+                jitted.overloads[signature].entry_point(*args)
             compiled = jitted
             break
         except Exception as exc:  # numba's typing errors have no common public base
@@ -86,6 +88,18 @@ def compile_task_function(fn, args):
         )
     _COMPILED[key] = compiled
     return compiled
+
+
+def _as_fused(argument_type):
+    """The type the fused step gives an argument of `argument_type`: its named columns
+    are column views (layout 'A'), which a single row's sample (contiguous) is not. So
+    the function compiles once, not once for the sample and again for the fused step."""
+    from numba.core import types
+
+    if not isinstance(argument_type, types.BaseNamedTuple):
+        return argument_type
+    fields = [t.copy(layout="A") if isinstance(t, types.Array) else t for t in argument_type]
+    return types.BaseTuple.from_types(fields, argument_type.instance_class)
 
 
 def bind(fn, args):
@@ -343,13 +357,11 @@ class Runtime:
         rows = self.per_row or pushed  # each row's own parameters: the kernels that read them so
         functions = {
             "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
-            "_erk": module.erk_batch_rows if rows else module.erk_batch,
-            "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
-            **({"_erk_w": module.erk_batch_w} if pushed else {}),
+            "_erk": module.erk_rows, "_outputs": module.outputs_batch,
             **compiled_functions,
         }  # fmt: skip
         plan, self._fused_C, self._fused_K = self._plan()
-        plan["perturbed"], plan["pushed"] = self.perturber is not None, pushed
+        plan["perturbed"], plan["pushed"], plan["rows"] = self.perturber is not None, pushed, rows
         types = dict(zip(("_Rows", "_Actions", "_Goal"), self._types))
         self._fused = fused.build(plan, functions, types)
 
@@ -432,8 +444,7 @@ class Runtime:
         # pushes step through the integrator that adds forces, which reads rows' parameters
         self._pushed = self.perturber is not None and self.perturber.spec.push is not None
         self._p_step = self.perturber.P if self._pushed and not self.per_row else self._p_kernel
-        energy = module.energy_batch_rows if self.per_row else module.energy_batch
-        self._energy = _warm(energy, self.T, self.X, self._p_kernel, self._E)
+        self._energy = _warm(module.energy_batch, self.T, self.X, self._p_model, self.P, self._E)
         self._compile_fused(jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -610,7 +621,8 @@ class Runtime:
         if not len(lay.output_index):
             return self.X
         if self.per_row:
-            self.system.kernels()[0].outputs_batch_rows(self.T, self.X, self.U, self.P, self._Y)
+            m = self.system.kernels()[0]
+            m.outputs_batch(self.T, self.X, self.U, self._p_model, self.P, self._Y)
         else:
             self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
         n_x = self.system.state_size
@@ -621,19 +633,20 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self._energy(self.T, self.X, self._p_kernel, self._E)
+        self._energy(self.T, self.X, self._p_model, self.P, self._E)
         return self._E.sum(axis=1)
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._energy(self.T, self.X, self._p_kernel, self._E)
+        self._energy(self.T, self.X, self._p_model, self.P, self._E)
         kinetic, potential = self._E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
         if self.per_row:
-            self.system.kernels()[0].residual_batch_rows(self.T, self.X, self.P, self._C)
+            m = self.system.kernels()[0]
+            m.residual_batch(self.T, self.X, self._p_model, self.P, self._C)
         else:
             self.system.constraint_residual_unchecked(self.T, self.X, self._C)
         return self._C.copy()
