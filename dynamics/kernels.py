@@ -2,7 +2,10 @@
 
 They call the generated `kkt`, `kkt_matrix`, `residual`, `energy_terms`, `power_out`,
 `outputs` and read the constants N_Q, N_C, K, N_OUT of that module, so this file is a
-template and is never imported by itself. Everything is batched over a leading axis and
+template and is never imported by itself; what they share with every model (`solve`,
+`vsin`, ...) is imported from `lanes.py`, compiled once per machine. One kernel serves
+the shared parameters and each row's own: `P` None or an array (numba prunes the other
+branch before compiling), so a form compiles only what it calls, when first called. Everything is batched over a leading axis and
 allocates its work arrays once per call. No kernel raises on bad values (division by zero
 follows numpy's rules): a row whose result is undefined comes back NaN, for the caller to see.
 """
