@@ -132,13 +132,20 @@ def put_column(out, k, v):
 def _put_column(out, k, v):
     """Row loops in place of numpy's broadcasting assignment, whose error message (shapes
     formatted as text) alone cost about 4 s of compilation per fused step."""
-    if isinstance(v, numba_types.Array):
+    if isinstance(v, numba_types.Array) and v.ndim == 1:
 
         def rows(out, k, v):
             for b in range(out.shape[0]):
                 out[b, k] = v[b]
 
         return rows
+    if isinstance(v, numba_types.Array):  # one value as a 0-d array
+
+        def zero_d(out, k, v):
+            for b in range(out.shape[0]):
+                out[b, k] = v[()]
+
+        return zero_d
 
     def scalar(out, k, v):
         for b in range(out.shape[0]):
