@@ -59,15 +59,17 @@ print(json.dumps({"import": t_import, "make": t2 - t1, "reset": t3 - t2, "step":
 that tree's packages), the model's folder, its module name and its env id as arguments."""
 
 
-def measure(tree: Path, model: str, cache: Path | None = None) -> dict[str, float]:
+def measure(tree: Path, model: str, work: Path | None = None) -> dict[str, float]:
     """Seconds of each phase (`PHASES`) for `model` (a key of `MODELS`) in the checkout at
-    `tree`, from a fresh model cache (`cache`, or a new temporary folder, removed after)."""
-    work = Path(tempfile.mkdtemp(prefix="cold-start-"))
+    `tree`: its module copied into the folder `work`, with the model cache `work/cache`
+    (a new temporary folder, removed after, when `work` is None: a cold start)."""
+    fresh = work is None
+    work = Path(tempfile.mkdtemp(prefix="cold-start-")) if fresh else work
     try:
-        name = f"user_{model}_{os.getpid()}_{work.name.rsplit('-', 1)[-1]}"
-        shutil.copy(ROOT / "examples" / f"{model}.py", work / f"{name}.py")
-        env = dict(os.environ, OMP_NUM_THREADS="1")
-        env["LAGRANGE_GYM_CACHE"] = str(cache if cache is not None else work / "cache")
+        name = f"user_{model}_{work.name.rsplit('-', 1)[-1]}"
+        if not (work / f"{name}.py").exists():
+            shutil.copy(ROOT / "examples" / f"{model}.py", work / f"{name}.py")
+        env = dict(os.environ, OMP_NUM_THREADS="1", LAGRANGE_GYM_CACHE=str(work / "cache"))
         env.pop("PYTHONPATH", None)
         done = subprocess.run(
             [sys.executable, "-c", CHILD, str(work), name, MODELS[model]],
@@ -78,18 +80,20 @@ def measure(tree: Path, model: str, cache: Path | None = None) -> dict[str, floa
             raise RuntimeError(f"The cold start of {model} in {tree} failed: {last}")
         return json.loads(done.stdout.strip().splitlines()[-1])
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if fresh:
+            shutil.rmtree(work, ignore_errors=True)
 
 
 def measure_warm(tree: Path, model: str) -> dict[str, float]:
-    """`measure` with a model cache that one run has filled (what an unchanged model costs
-    in a new process)."""
-    cache = Path(tempfile.mkdtemp(prefix="cold-start-cache-"))
+    """`measure` of the same model in the same folder a second time: its model cache and
+    its task functions' numba cache filled by the first (what an unchanged model costs in
+    a new process)."""
+    work = Path(tempfile.mkdtemp(prefix="cold-start-"))
     try:
-        measure(tree, model, cache)
-        return measure(tree, model, cache)
+        measure(tree, model, work)
+        return measure(tree, model, work)
     finally:
-        shutil.rmtree(cache, ignore_errors=True)
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def summary(runs: list[dict[str, float]]) -> dict[str, float]:
