@@ -2,7 +2,10 @@
 
 They call the generated `kkt`, `kkt_matrix`, `residual`, `energy_terms`, `power_out`,
 `outputs` and read the constants N_Q, N_C, K, N_OUT of that module, so this file is a
-template and is never imported by itself. Everything is batched over a leading axis and
+template and is never imported by itself; what they share with every model (`solve`,
+`vsin`, ...) is imported from `lanes.py`, compiled once per machine. One kernel serves
+the shared parameters and each row's own: `P` None or an array (numba prunes the other
+branch before compiling), so a form compiles only what it calls, when first called. Everything is batched over a leading axis and
 allocates its work arrays once per call. No kernel raises on bad values (division by zero
 follows numpy's rules): a row whose result is undefined comes back NaN, for the caller to see.
 """
@@ -16,69 +19,6 @@ import llvmlite.binding  # noqa: E402
 # writes 2n, past that from four coordinates on (a chain of four links on a cart: 8.6e6
 # evaluations/s unvectorised, 5.7e7 vectorised). The checks run once per block of rows.
 llvmlite.binding.set_option("", "-vectorize-memory-check-threshold=10000")
-
-PIVOT_TOL = 64 * 2.220446049250313e-16
-"""Smallest pivot of the row-scaled matrix: below it the matrix is singular to working
-precision (condition number about 1e14 or more, fewer than two correct digits)."""
-
-
-@njit(cache=True, error_model="numpy")
-def fail(r):
-    for i in range(r.shape[0]):
-        r[i] = math.nan
-
-
-@njit(cache=True, error_model="numpy")
-def solve(A, r):
-    """Solve A z = r in place (r <- z) by Gaussian elimination with partial pivoting.
-
-    A is the small mass/constraint matrix, K x K, stored with one spare column (shape
-    (K, K + 1)) that holds each row's largest entry; LAPACK's call overhead is several
-    times the arithmetic at this size (see benchmarks/dynamics.py). A pivot below
-    PIVOT_TOL times its row's largest entry (the matrix singular to working precision,
-    whatever the scale of each row) or an empty row leaves NaN in r instead of raising.
-    """
-    k = r.shape[0]
-    for i in range(k):
-        s = 0.0
-        for j in range(k):
-            a = abs(A[i, j])
-            if a > s:
-                s = a
-        if not (s > 0.0 and s < math.inf):
-            fail(r)
-            return
-        A[i, k] = s
-    for c in range(k):
-        piv = c
-        big = abs(A[c, c])
-        for i in range(c + 1, k):
-            if abs(A[i, c]) > big:
-                big = abs(A[i, c])
-                piv = i
-        if not big > PIVOT_TOL * A[piv, k]:
-            fail(r)
-            return
-        if piv != c:
-            for j in range(k + 1):
-                tmp = A[c, j]
-                A[c, j] = A[piv, j]
-                A[piv, j] = tmp
-            tmp = r[c]
-            r[c] = r[piv]
-            r[piv] = tmp
-        inv = 1.0 / A[c, c]
-        for i in range(c + 1, k):
-            f = A[i, c] * inv
-            if f != 0.0:
-                for j in range(c + 1, k):
-                    A[i, j] -= f * A[c, j]
-                r[i] -= f * r[c]
-    for c in range(k - 1, -1, -1):
-        s = r[c]
-        for j in range(c + 1, k):
-            s -= A[c, j] * r[j]
-        r[c] = s / A[c, c]
 
 
 @njit(cache=True, error_model="numpy")
@@ -153,81 +93,6 @@ def accelerations_batch(T, X, U, p, out):
 
 
 # ---- fixed-step Runge-Kutta over rows held in vector lanes ---------------------------------
-# fdlibm's reduction by pi/2 in three parts (33 + 33 + 53 bits: k * PIO2_1 and k * PIO2_2 are
-# exact for |k| < 2**20, |x| < 1.6e6) and its minimax kernels on [-pi/4, pi/4] (< 1 ulp).
-TWO_OVER_PI = 6.36619772367581382433e-01
-PIO2_1 = 1.57079632673412561417e00
-PIO2_2 = 6.07710050630396597660e-11
-PIO2_2T = 2.02226624879595063154e-21
-
-
-@njit(cache=True, error_model="numpy")
-def _reduce(x):
-    """(r, quadrant) with x = r + quadrant * pi/2 (mod 2 pi), |r| <= pi/4, quadrant a
-    float 0..3 (NaN for NaN or inf: no float-to-int conversion, whose out-of-range result
-    LLVM may assume away), branch-free."""
-    k = np.floor(x * TWO_OVER_PI + 0.5)
-    r = ((x - k * PIO2_1) - k * PIO2_2) - k * PIO2_2T
-    return r, k - 4.0 * np.floor(0.25 * k)
-
-
-@njit(cache=True, error_model="numpy")
-def _sin_kernel(r):
-    z = r * r
-    w = 8.33333333332248946124e-03 + z * (
-        -1.98412698298579493134e-04
-        + z
-        * (
-            2.75573137070700676789e-06
-            + z * (-2.50507602534068634195e-08 + z * 1.58969099521155010221e-10)
-        )
-    )
-    return r + (z * r) * (-1.66666666666666324348e-01 + z * w)
-
-
-@njit(cache=True, error_model="numpy")
-def _cos_kernel(r):
-    z = r * r
-    w = z * (
-        4.16666666666666019037e-02
-        + z
-        * (
-            -1.38888888888741095749e-03
-            + z
-            * (
-                2.48015872894767294178e-05
-                + z
-                * (
-                    -2.75573143513906633035e-07
-                    + z * (2.08757232129817482790e-09 + z * -1.13596475577881948265e-11)
-                )
-            )
-        )
-    )
-    hz = 0.5 * z
-    v = 1.0 - hz
-    return v + (((1.0 - v) - hz) + z * w)
-
-
-@njit(cache=True, error_model="numpy")
-def vsin(x):
-    """sin(x) without a library call (vectorisable): within 2 ulp of libm for |x| < 1.6e6;
-    beyond, its absolute error stays below the spacing of doubles at x. NaN for NaN, inf."""
-    r, q = _reduce(x)
-    s, c = _sin_kernel(r), _cos_kernel(r)
-    v = c if (q == 1.0) | (q == 3.0) else s
-    return -v if q >= 2.0 else v
-
-
-@njit(cache=True, error_model="numpy")
-def vcos(x):
-    """cos(x) without a library call (vectorisable), accurate as `vsin`."""
-    r, q = _reduce(x)
-    s, c = _sin_kernel(r), _cos_kernel(r)
-    v = s if (q == 1.0) | (q == 3.0) else c
-    return -v if (q == 1.0) | (q == 2.0) else v
-
-
 @njit(cache=True, error_model="numpy")
 def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
     """Rows lo..hi of X advanced by `substeps` explicit Runge-Kutta steps of size h with the
@@ -391,30 +256,25 @@ def project_columns(t, x, p, P, lo):
 
 
 @njit(cache=True, error_model="numpy")
-def erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, block):
-    """`erk_batch` with each row's own parameters P (N, n_p)."""
+def erk_batch(T, X, U, p, P, W, h, substeps, a, w, c, out, block):
+    """`erk_rows` over all rows, `block` rows at a time, on this thread: with the
+    parameters p for every row (P None) or each row's own P (N, n_p) (then p is P[0], for
+    its shape), and the generalised forces W (N, n_q) added to each row's forcing where
+    not None (with P). numba prunes the branches on None, so each form compiles only the
+    kernels it calls."""
     n = X.shape[0]
-    for j in range((n + block - 1) // block):
-        erk_rows(T, X, U, P[0], P, None, h, substeps, a, w, c, out, j * block,
-                    min(n, (j + 1) * block))  # fmt: skip
+    for lo in range(0, n, block):
+        erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, min(n, lo + block))
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, block):
-    """`erk_batch_rows` with the blocks spread over numba's threads."""
+def erk_batch_parallel(T, X, U, p, P, h, substeps, a, w, c, out, block):
+    """`erk_batch` (W None) with the blocks spread over numba's threads
+    (numba.set_num_threads): bit for bit the same result."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, P[0], P, None, h, substeps, a, w, c, out, j * block,
-                    min(n, (j + 1) * block))  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy")
-def erk_batch_w(T, X, U, P, W, h, substeps, a, w, c, out, block):
-    """`erk_batch_rows` with the generalised forces W (N, n_q) added to each row's forcing
-    and held over the step (external pushes): `erk_rows` with W, block by block."""
-    n = X.shape[0]
-    for lo in range(0, n, block):
-        erk_rows(T, X, U, P[0], P, W, h, substeps, a, w, c, out, lo, min(n, lo + block))
+        erk_rows(T, X, U, p, P, None, h, substeps, a, w, c, out, j * block,
+                 min(n, (j + 1) * block))  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy")
@@ -429,53 +289,6 @@ def point_forces_batch(T, X, P, k, F, out):
 
 
 @njit(cache=True, error_model="numpy")
-def outputs_batch_rows(T, X, U, P, out):
-    """`outputs_batch` with each row's own parameters P (N, n_p)."""
-    for b in range(X.shape[0]):
-        outputs_batch(T[b : b + 1], X[b : b + 1], U[b : b + 1], P[b], out[b : b + 1])
-
-
-@njit(cache=True, error_model="numpy")
-def energy_batch_rows(T, X, P, out):
-    """`energy_batch` with each row's own parameters P (N, n_p)."""
-    for b in range(X.shape[0]):
-        energy_terms(T[b], X[b], P[b], out[b])
-
-
-@njit(cache=True, error_model="numpy")
-def residual_batch_rows(T, X, P, out):
-    """`residual_batch` with each row's own parameters P (N, n_p)."""
-    for b in range(X.shape[0]):
-        residual(T[b], X[b], P[b], out[b])
-
-
-@njit(cache=True, error_model="numpy")
-def project_batch_rows(T, X, P, out):
-    """`project_batch` with each row's own parameters P (N, n_p)."""
-    for b in range(X.shape[0]):
-        project_batch(T[b : b + 1], X[b : b + 1], P[b], out[b : b + 1])
-
-
-@njit(cache=True, error_model="numpy")
-def erk_batch(T, X, U, p, h, substeps, a, w, c, out, block):
-    """`erk_rows` over all rows, `block` rows at a time, on this thread."""
-    n = X.shape[0]
-    for j in range((n + block - 1) // block):
-        erk_rows(T, X, U, p, None, None, h, substeps, a, w, c, out, j * block,
-                 min(n, (j + 1) * block))  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy", parallel=True)
-def erk_batch_parallel(T, X, U, p, h, substeps, a, w, c, out, block):
-    """`erk_batch` with the blocks spread over numba's threads (numba.set_num_threads):
-    bit for bit the same result."""
-    n = X.shape[0]
-    for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, p, None, None, h, substeps, a, w, c, out, j * block,
-                 min(n, (j + 1) * block))  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy")
 def project_batch(T, X, p, out):
     A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
@@ -486,15 +299,23 @@ def project_batch(T, X, p, out):
 
 
 @njit(cache=True, error_model="numpy")
-def energy_batch(T, X, p, out):
+def energy_batch(T, X, p, P, out):
+    """[T, V] of every row, with the parameters p (P None) or each row's own P (N, n_p)."""
     for b in range(X.shape[0]):
-        energy_terms(T[b], X[b], p, out[b])
+        if P is None:
+            energy_terms(T[b], X[b], p, out[b])
+        else:
+            energy_terms(T[b], X[b], P[b], out[b])
 
 
 @njit(cache=True, error_model="numpy")
-def residual_batch(T, X, p, out):
+def residual_batch(T, X, p, P, out):
+    """The constraint residual of every row, parameters as in `energy_batch`."""
     for b in range(X.shape[0]):
-        residual(T[b], X[b], p, out[b])
+        if P is None:
+            residual(T[b], X[b], p, out[b])
+        else:
+            residual(T[b], X[b], P[b], out[b])
 
 
 @njit(cache=True, error_model="numpy")
@@ -507,12 +328,17 @@ def power_batch(T, X, U, p, out):
 
 
 @njit(cache=True, error_model="numpy")
-def outputs_batch(T, X, U, p, out):
+def outputs_batch(T, X, U, p, P, out):
+    """The model's outputs of every row, parameters as in `energy_batch`."""
     A = np.empty((K, K + 1))  # a spare column for solve
     z = np.empty(K)
     for b in range(X.shape[0]):
-        accelerations(T[b], X[b], U[b], p, A, z)
-        outputs(T[b], X[b], U[b], p, z, out[b])
+        if P is None:
+            accelerations(T[b], X[b], U[b], p, A, z)
+            outputs(T[b], X[b], U[b], p, z, out[b])
+        else:
+            accelerations(T[b], X[b], U[b], P[b], A, z)
+            outputs(T[b], X[b], U[b], P[b], z, out[b])
 
 
 @njit(cache=True, error_model="numpy")
@@ -523,31 +349,6 @@ def linear_terms(t, x, u, p, A, z, Jx, Ju):
     accelerations(t, x, u, p, A, z)
     jacobians(t, x, u, p, z, Jx, Ju)
     kkt_matrix(t, x, p, A)
-
-
-@njit(cache=True, error_model="numpy")
-def all_finite(T, X, U):
-    """True if no entry of T, X, U is NaN or inf (one pass, no temporaries)."""
-    for b in range(X.shape[0]):
-        if not math.isfinite(T[b]):
-            return False
-        for i in range(X.shape[1]):
-            if not math.isfinite(X[b, i]):
-                return False
-        for j in range(U.shape[1]):
-            if not math.isfinite(U[b, j]):
-                return False
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def first_nonfinite(Y):
-    """Index of the first row of Y holding NaN or inf, or -1."""
-    for b in range(Y.shape[0]):
-        for i in range(Y.shape[1]):
-            if not math.isfinite(Y[b, i]):
-                return b
-    return -1
 
 
 @njit(cache=True, error_model="numpy")

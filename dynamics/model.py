@@ -44,7 +44,15 @@ def register(name: str, target: str) -> None:
     _REGISTRY[name] = target
 
 
-_CORE = ("spec.py", "calculus.py", "derive.py", "program.py", "codegen.py", "kernels.py")
+_CORE = (
+    "spec.py",
+    "calculus.py",
+    "derive.py",
+    "program.py",
+    "codegen.py",
+    "kernels.py",
+    "lanes.py",
+)
 
 
 def _is_library(path: Path) -> bool:

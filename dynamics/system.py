@@ -183,7 +183,12 @@ class System:
     def _solve(self, t, x, u):
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], self.n_q + self.n_c))
-        self._m.accelerations_batch(T, X, U, self._p, out)
+        compiled = _kernel_compiled(self._m.accelerations_batch)
+        if len(X) > INTERPRETED_ROWS or not all(
+            self._interpreted(_accelerations_py, T[b], X[b], U[b], out[b], compiled=compiled)
+            for b in range(len(X))
+        ):
+            self._m.accelerations_batch(T, X, U, self._p, out)
         return self._finite("accelerations", out, T, X, U).reshape(lead + (self.n_q + self.n_c,))
 
     def step(
@@ -200,7 +205,9 @@ class System:
         tableau = method_tableau(method)
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
-        self._m.erk_batch(T, X, U, self._p, dt / substeps, substeps, *tableau, out, BLOCK)
+        self._m.erk_batch(
+            T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out, BLOCK
+        )
         out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 
@@ -226,9 +233,9 @@ class System:
         h = dt / substeps
         if num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            self._m.erk_batch_parallel(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
+            self._m.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out, BLOCK)
         else:
-            self._m.erk_batch(T, X, U, self._p, h, substeps, a, w, c, out, BLOCK)
+            self._m.erk_batch(T, X, U, self._p, None, None, h, substeps, a, w, c, out, BLOCK)
 
     def step_rows_unchecked(
         self, T, X, U, P, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
@@ -241,9 +248,9 @@ class System:
         h = dt / substeps
         if num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            self._m.erk_batch_rows_parallel(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
+            self._m.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK)
         else:
-            self._m.erk_batch_rows(T, X, U, P, h, substeps, a, w, c, out, BLOCK)
+            self._m.erk_batch(T, X, U, P[0], P, None, h, substeps, a, w, c, out, BLOCK)
 
     def step_pushed_unchecked(
         self, T, X, U, P, W, dt: float, substeps: int, out: np.ndarray, method: str = "rk4"
@@ -252,7 +259,7 @@ class System:
         to the equations' forcing and held over dt (external pushes, see `point_forces`);
         W = 0 steps bit for bit as `step_rows_unchecked`. Unchecked."""
         a, w, c = method_tableau(method)
-        self._m.erk_batch_w(T, X, U, P, W, dt / substeps, substeps, a, w, c, out, BLOCK)
+        self._m.erk_batch(T, X, U, P[0], P, W, dt / substeps, substeps, a, w, c, out, BLOCK)
 
     def point_forces(self, x, point: str, force, t=0.0) -> np.ndarray:
         """The generalised forces (..., n_q) of `force` (..., 2 or 3 components, in the basis
@@ -326,18 +333,14 @@ class System:
         own compiled loops (the environments' fused step)."""
         return self._m, self._p
 
-    def energy_terms_unchecked(self, T, X, out: np.ndarray) -> None:
-        """`energy_terms` on contiguous float64 rows into `out` (N, 2), without checks."""
-        self._m.energy_batch(T, X, self._p, out)
-
     def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
         """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
-        self._m.residual_batch(T, X, self._p, out)
+        self._m.residual_batch(T, X, self._p, None, out)
 
     def outputs_unchecked(self, T, X, U, out: np.ndarray) -> None:
         """`outputs` on contiguous float64 rows into `out` (N, len(output_names)), columns in
         the order of `output_names`, without checks."""
-        self._m.outputs_batch(T, X, U, self._p, out)
+        self._m.outputs_batch(T, X, U, self._p, None, out)
 
     def project(self, x, t=0.0) -> np.ndarray:
         """x with its rates moved onto the velocity constraints (kinetic-energy metric)."""
@@ -351,7 +354,7 @@ class System:
         """[T, V], shape (..., 2)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], 2))
-        self._m.energy_batch(T, X, self._p, out)
+        self._m.energy_batch(T, X, self._p, None, out)
         return self._finite("energy", out, T, X).reshape(lead + (2,))
 
     def energy(self, x, t=0.0) -> np.ndarray:
@@ -362,7 +365,7 @@ class System:
         """B(q, t) qdot + b(q, t) of the nonholonomic constraints, shape (..., n_c)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], self.n_c))
-        self._m.residual_batch(T, X, self._p, out)
+        self._m.residual_batch(T, X, self._p, None, out)
         return self._finite("constraint_residual", out, T, X).reshape(lead + (self.n_c,))
 
     def power(self, t, x, u=None) -> np.ndarray:
@@ -377,7 +380,7 @@ class System:
         """Named derived quantities (e.g. the torque that keeps a prescribed rotation)."""
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], len(self.output_names)))
-        self._m.outputs_batch(T, X, U, self._p, out)
+        self._m.outputs_batch(T, X, U, self._p, None, out)
         out = self._finite("outputs", out, T, X, U)
         return {k: out[:, i].reshape(lead) for i, k in enumerate(self.output_names)}
 
@@ -395,13 +398,14 @@ class System:
         self._finite("kkt", np.concatenate([A[:, :k].ravel(), r])[None, :], T, X, U)
         return A[:, :k], r
 
-    def _interpreted(self, program, t, x, u, *out) -> bool:
+    def _interpreted(self, program, t, x, u, *out, compiled: bool | None = None) -> bool:
         """Run `program` (the generated kernels' Python functions) on one point, while the
-        model's compiled linearisation is not in use yet (`INTERPRETED_POINTS`): True if it
-        filled `out`, False where Python's arithmetic raised (a division by zero, an
-        overflow) and the compiled kernels must give their NaN or inf instead."""
+        model's compiled kernel is not in use yet (`INTERPRETED_POINTS`; `compiled`: whether
+        it is, by default whether the linearisation is): True if it filled `out`, False
+        where Python's arithmetic raised (a division by zero, an overflow) and the compiled
+        kernels must give their NaN or inf instead."""
         used = _interpreted_points.get(self._m.KEY, 0)
-        if used >= INTERPRETED_POINTS or _compiled(self._m):
+        if used >= INTERPRETED_POINTS or (_compiled(self._m) if compiled is None else compiled):
             return False
         _interpreted_points[self._m.KEY] = used + 1
         try:
@@ -442,26 +446,44 @@ class System:
 INTERPRETED_POINTS = 5000
 """While a model's linearisation kernel is not compiled (`_compiled`), its first points in a
 process (`System.linearize`, `System.kkt`) run its generated code as plain Python: the same
-arithmetic in the same order (the same numbers; tests/dynamics/test_linearize.py), without
-compiling it. A handful of points (an LQR design, the bicycle's benchmark matrices) then
+arithmetic in the same order (the same numbers up to the last bit of a power, which Python
+takes from libm's `pow` and numba as products; tests/dynamics/test_linearize.py), without
+compiling it. So do `System.accelerations` and `multipliers` of at most `INTERPRETED_ROWS`
+rows while their kernel is not compiled: the checks an env runs when it is made (every
+input moves something, the operating input) then compile nothing the first step does not
+need. A handful of points (an LQR design, the bicycle's benchmark matrices) then
 costs milliseconds instead of compiling the Jacobians (the bicycle's 4,500 lines: 40 s of
 CPU). A point interpreted costs about 1e-4 of that compilation (two-link arm 0.2 ms
 against 1.5 s, the bicycle 3-6 ms against 40 s), so a planner's many linearisations switch
 to the compiled kernel after this many, having spent at most about half of it."""
 
+INTERPRETED_ROWS = 64
+"""The largest batch of `System.accelerations` that may run as Python (see above)."""
+
 _interpreted_points: dict[str, int] = {}
 
 
 def _compiled(m) -> bool:
-    """True when module m's linearisation kernel is compiled: in this process, or in
-    numba's on-disk cache (its index file; then using it costs a file read)."""
-    kernel = m.linear_terms
+    """True when module m's linearisation kernel is compiled (`_kernel_compiled`)."""
+    return _kernel_compiled(m.linear_terms)
+
+
+def _kernel_compiled(kernel) -> bool:
+    """True when `kernel` is compiled: in this process, or in numba's on-disk cache (its
+    index file; then using it costs a file read)."""
     if kernel.signatures:
         return True
     try:
         return os.path.exists(kernel._cache._cache_file._index_path)
     except AttributeError:  # another numba's private layout: count it as not compiled
         return False
+
+
+def _accelerations_py(m, t, x, u, p, z) -> None:
+    """`accelerations` of module m through the Python functions of its kernels."""
+    A = np.empty((m.K, m.K + 1))  # a spare column for solve
+    m.kkt.py_func(t, x, u, p, A, z)
+    m.solve.py_func(A, z)
 
 
 def _kkt_py(m, t, x, u, p, A, r) -> None:

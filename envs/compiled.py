@@ -41,7 +41,9 @@ def compile_task_function(fn, args):
                 jitted = numba.njit(cache=cache, boundscheck=True)(fn)
                 if cache:  # helpers in other files: numba's cache would not see their edits
                     keep_numba_cache_true(jitted, fn)
-                jitted(*args)
+                signature = tuple(_as_fused(numba.typeof(a)) for a in args)
+                jitted.compile(signature)  # the types the fused step calls it with
+                jitted.overloads[signature].entry_point(*args)
             compiled = jitted
             break
         except Exception as exc:  # numba's typing errors have no common public base
@@ -56,6 +58,18 @@ def compile_task_function(fn, args):
         )
     _COMPILED[key] = compiled
     return compiled
+
+
+def _as_fused(argument_type):
+    """The type the fused step gives an argument of `argument_type`: its named columns
+    are column views (layout 'A'), which a single row's sample (contiguous) is not. So
+    the function compiles once, not once for the sample and again for the fused step."""
+    from numba.core import types
+
+    if not isinstance(argument_type, types.BaseNamedTuple):
+        return argument_type
+    fields = [t.copy(layout="A") if isinstance(t, types.Array) else t for t in argument_type]
+    return types.BaseTuple.from_types(fields, argument_type.instance_class)
 
 
 def bind(fn, args):
@@ -183,13 +197,11 @@ def compile_fused(rt, jitted: dict) -> None:
     rows = rt.parameters.per_row  # each row's own parameters: the kernels that read them so
     functions = {
         "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
-        "_erk": module.erk_batch_rows if rows else module.erk_batch,
-        "_outputs": module.outputs_batch_rows if rows else module.outputs_batch,
-        **({"_erk_w": module.erk_batch_w} if rt._pushed else {}),
+        "_erk": module.erk_rows, "_outputs": module.outputs_batch,
         **jitted,
     }  # fmt: skip
     plan_, rt._fused_C, rt._fused_K = plan(rt)
-    plan_["perturbed"], plan_["pushed"] = rt.perturber is not None, rt._pushed
+    plan_["perturbed"], plan_["pushed"], plan_["rows"] = rt.perturber is not None, rt._pushed, rows
     types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
     rt._fused = fused.build(plan_, functions, types)
 

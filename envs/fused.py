@@ -22,6 +22,8 @@ import hashlib
 import types
 
 import numpy as np
+from numba import types as numba_types
+from numba.extending import overload
 
 from dynamics import cache
 
@@ -121,8 +123,59 @@ def _feed(h, obj, seen: set[int]) -> bool:
 
 
 # ---- the generated step --------------------------------------------------------------------
+def put_column(out, k, v):
+    """out[:, k] = v, v one value per row or one for all (a scalar)."""
+    out[:, k] = v
+
+
+@overload(put_column)
+def _put_column(out, k, v):
+    """Row loops in place of numpy's broadcasting assignment, whose error message (shapes
+    formatted as text) alone cost about 4 s of compilation per fused step."""
+    if isinstance(v, numba_types.Array) and v.ndim == 1:
+
+        def rows(out, k, v):
+            for b in range(out.shape[0]):
+                out[b, k] = v[b]
+
+        return rows
+    if isinstance(v, numba_types.Array):  # one value as a 0-d array
+
+        def zero_d(out, k, v):
+            for b in range(out.shape[0]):
+                out[b, k] = v[()]
+
+        return zero_d
+
+    def scalar(out, k, v):
+        for b in range(out.shape[0]):
+            out[b, k] = v
+
+    return scalar
+
+
+def put_rows(out, v):
+    """out[:] = v, v one value per row."""
+    out[:] = v
+
+
+@overload(put_rows)
+def _put_rows(out, v):
+    def rows(out, v):
+        for b in range(out.shape[0]):
+            out[b] = v[b]
+
+    return rows
+
+
+RENAMED = {"Q": "terms"}
+"""Runtime arrays named otherwise in the generated step: `Q` is the reward terms (in the
+book Q is the generalised forces)."""
+
+
 def _segment(lines: list[str], name: str, buf: str, start: int, width: int | None) -> None:
     """`name` = rows start.. of the flat buffer `buf` (width None: a column per row)."""
+    name = RENAMED.get(name, name)
     if width is None:
         lines.append(f"    {name} = {buf}[n * {start}:n * {start + 1}]")
     else:
@@ -134,24 +187,31 @@ def source(plan: dict) -> str:
     lines = [
         "from numba import njit",
         "",
+        "from envs.fused import put_column, put_rows",
+        "",
         "# Globals set by envs.fused before the first call: the runtime's kernels (_apply,",
-        "# _advance, _observe, _finish), the model's (_erk, _outputs) and the task's (_reward,",
-        "# _success, _failure, _derived_k). The module's name hashes all of their code.",
+        "# _advance, _observe, _finish), the model's (_erk: erk_rows, _outputs) and the",
+        "# task's (_reward or _term_k, _success, _failure, _derived_k). The module's name",
+        "# hashes all of their code.",
         "",
         "",
         "@njit(cache=True, error_model='numpy')",
-        "def step(actions, F_, B_, steps, O, C_, K_, p, q, horizon):",
+        "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params, horizon):",
         '    """One control period of every row; -1 (nothing changed) for a NaN or inf',
-        '    action, else 1 if some row diverged, 0 if none did."""',
+        "    action, else 1 if some row diverged, 0 if none did. model_params: the model's",
+        "    parameters (one vector, or a row per copy), task_params: the record the task's",
+        '    functions read."""',
         "    n = actions.shape[0]",
     ]
     if plan.get("perturbed"):  # envs.perturb: two more arguments
-        lines[-4:-1] = [
-            "def step(actions, F_, B_, steps, O, C_, K_, p, q, horizon, applied, W):",
+        lines[-6:-1] = [
+            "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params, horizon,",
+            "         applied, W):",
             '    """One control period of every row; -1 (nothing changed) for a NaN or inf',
             "    action, else 1 if some row diverged, 0 if none did. The inputs `applied`",
             "    (N, n_a) replace the commanded ones; with pushes, the generalised forces W",
-            '    (N, n_q) are added to the forcing (p: each row\'s parameters)."""',
+            "    (N, n_q) are added to the forcing (model_params: each row's parameters;",
+            '    task_params: the record the task\'s functions read)."""',
         ]
     for name, start, width in plan["floats"]:
         _segment(lines, name, "F_", start, width)
@@ -175,15 +235,20 @@ def source(plan: dict) -> str:
             "        for j in range(actuated.shape[0]):",
             "            U[b, actuated[j]] = applied[b, j]",
         ]
-    erk = "_erk_w(T, X, U, p, W," if plan.get("pushed") else "_erk(T, X, U, p,"
+    # the parameters: one vector for every row, or each row's own (then the first row's
+    # gives the kernels the vector's shape); pushes add the generalised forces W
+    params = "model_params[0], model_params" if plan.get("rows") else "model_params, None"
+    forces = "W" if plan.get("pushed") else "None"
     lines += [
-        f"    {erk} h, substeps, ta, tw, tc, X_next, block)",
+        "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
+        f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
+        "             min(n, lo + block))",
         "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
         "                            steps_left)",
     ]
     if plan["outputs"]:
         lines += [
-            "    _outputs(T, X, U, p, Y)",
+            f"    _outputs(T, X, U, {params}, Y)",
             "    for b in range(n):",
             f"        for i in range({plan['n_x']}):",
             "            rows_x[b, i] = X[b, i]",
@@ -193,33 +258,7 @@ def source(plan: dict) -> str:
         ]
     else:
         lines.append("    x = X")
-    args = "x, A, G, q"
-    if plan["named"]:  # the task functions read their inputs by name (envs.names)
-        lines.append(f"    # named inputs: {', '.join(plan['types'])}")
-        for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
-                                        ("x", "A", "G"), plan["widths"]):  # fmt: skip
-            cols = ", ".join(f"{src}[:, {i}]" for i in range(width))
-            lines.append(f"    {var} = {cls}({cols})")
-        args = "xs, as_, gs, q"
-    lines.append("    _observe(x, G, ops, obs_low, obs_high, obs64)")
-    for k, col in enumerate(plan["derived"]):
-        lines.append(f"    obs64[:, {col}] = _derived_{k}({args})")
-    if plan["derived"]:
-        lines += [
-            "    for b in range(n):",
-            f"        for j in range({plan['n_obs']}):",
-            "            obs64[b, j] = min(max(obs64[b, j], obs_low[j]), obs_high[j])",
-        ]
-    if plan["named"]:
-        for k in range(plan["n_terms"]):
-            lines.append(f"    terms[:, {k}] = _term_{k}({args})")
-    else:
-        lines.append("    values = _reward(x, A, G, q)")
-        for k in range(plan["n_terms"]):
-            lines.append(f"    terms[:, {k}] = values[{k}]")
-    lines.append(f"    success[:] = _success({args})")
-    if plan["failure"]:
-        lines.append(f"    failed[:] = _failure({args})")
+    lines += _task_lines(plan)
     lines += [
         "    bad = _finish(terms, term_low, term_high, failed, diverged, steps_left, lowest, R,",
         "                  terminated, success, obs64, obs_low, O)",
@@ -229,11 +268,45 @@ def source(plan: dict) -> str:
     return "\n".join(lines)
 
 
+def _task_lines(plan: dict) -> list[str]:
+    """The generated step's calls of the task's functions: observation, reward terms,
+    success and failure."""
+    lines = []
+    args = "x, A, G, task_params"
+    if plan["named"]:  # the task functions read their inputs by name (envs.names)
+        lines.append(f"    # named inputs: {', '.join(plan['types'])}")
+        for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
+                                        ("x", "A", "G"), plan["widths"]):  # fmt: skip
+            cols = ", ".join(f"{src}[:, {i}]" for i in range(width))
+            lines.append(f"    {var} = {cls}({cols})")
+        args = "xs, as_, gs, task_params"
+    lines.append("    _observe(x, G, ops, obs_low, obs_high, obs64)")
+    for k, col in enumerate(plan["derived"]):
+        lines.append(f"    put_column(obs64, {col}, _derived_{k}({args}))")
+    if plan["derived"]:
+        lines += [
+            "    for b in range(n):",
+            f"        for j in range({plan['n_obs']}):",
+            "            obs64[b, j] = min(max(obs64[b, j], obs_low[j]), obs_high[j])",
+        ]
+    if plan["named"]:
+        for k in range(plan["n_terms"]):
+            lines.append(f"    put_column(terms, {k}, _term_{k}({args}))")
+    else:
+        lines.append(f"    values = _reward({args})")
+        for k in range(plan["n_terms"]):
+            lines.append(f"    put_column(terms, {k}, values[{k}])")
+    lines.append(f"    put_rows(success, _success({args}))")
+    if plan["failure"]:
+        lines.append(f"    put_rows(failed, _failure({args}))")
+    return lines
+
+
 def build(plan: dict, functions: dict, types: dict | None = None):
     """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher)
     and `types` (the named inputs' namedtuple classes, named in the source by their
     field hash), or None when the functions cannot be fingerprinted."""
-    digest = fingerprint(*(functions[k] for k in sorted(functions)))
+    digest = fingerprint(*(functions[k] for k in sorted(functions)), _put_column, _put_rows)
     if digest is None:
         return None
     body = source(plan)

@@ -125,9 +125,12 @@ class Runtime:
                             self.diverged, self._steps_left, self._lowest, self.R,
                             self.terminated, self.success, self._obs64, plant.obs_low,
                             self.O)  # fmt: skip
+        # the kernels take the shared vector p and, where copies differ, their rows P (None:
+        # every copy has p; numba prunes that branch, so each form compiles only its own)
+        self._p_shared, self._P = store.nominal, store.P
         module = self.system.kernel_module
-        energy = module.energy_batch_rows if store.per_row else module.energy_batch
-        self._energy = warm(energy, self.T, self.X, self._model_params, self._E)
+        self._energy = warm(module.energy_batch, self.T, self.X, self._p_shared, self._P,
+                            self._E)  # fmt: skip
         compiled.compile_fused(self, jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -135,7 +138,7 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_model_params", "_task_params"):  # fmt: skip
+                  "_E0", "_model_params", "_task_params", "_p_shared", "_P"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -297,8 +300,8 @@ class Runtime:
         if not len(plant.output_index):
             return self.X
         if self.parameters.per_row:
-            self.system.kernel_module.outputs_batch_rows(self.T, self.X, self.U,
-                                                         self._model_params, self._Y)  # fmt: skip
+            self.system.kernel_module.outputs_batch(self.T, self.X, self.U, self._p_shared,
+                                                    self._P, self._Y)  # fmt: skip
         else:
             self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
         n_x = self.system.state_size
@@ -309,20 +312,20 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self._energy(self.T, self.X, self._model_params, self._E)
+        self._energy(self.T, self.X, self._p_shared, self._P, self._E)
         return self._E.sum(axis=1)
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._energy(self.T, self.X, self._model_params, self._E)
+        self._energy(self.T, self.X, self._p_shared, self._P, self._E)
         kinetic, potential = self._E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
         if self.parameters.per_row:
-            self.system.kernel_module.residual_batch_rows(self.T, self.X, self._model_params,
-                                                          self._C)  # fmt: skip
+            self.system.kernel_module.residual_batch(self.T, self.X, self._p_shared, self._P,
+                                                     self._C)  # fmt: skip
         else:
             self.system.constraint_residual_unchecked(self.T, self.X, self._C)
         return self._C.copy()

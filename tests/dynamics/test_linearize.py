@@ -98,3 +98,32 @@ def test_interpreted_linearisation_falls_back_where_python_raises(monkeypatch):
     A, B = system.linearize(xs[0], np.zeros(system.n_u))
     assert system.kernels()[0].linear_terms.signatures
     assert np.isfinite(A).all() and np.isfinite(B).all()
+
+
+@pytest.mark.parametrize("name", ["two_link_arm", "rolling_disk"])
+def test_interpreted_accelerations_equal_the_compiled_kernel(name, monkeypatch):
+    """The few accelerations an env's checks ask for when it is made run the generated code
+    as Python (no compilation of a kernel the first step does not use); a larger batch, or
+    any once the budget is spent, the compiled kernel: the same numbers up to the last bit
+    of a power (Python's libm `pow`, numba's products)."""
+    from dynamics import system as system_module
+
+    system, xs = random_states(name, 5, seed=31)
+    us = np.random.default_rng(32).normal(size=(5, system.n_u))
+    monkeypatch.setattr(system_module, "_interpreted_points", {})
+    monkeypatch.setattr(system_module, "_kernel_compiled", lambda kernel: False)
+    program = system_module._accelerations_py
+    ran = []
+    counted = lambda *a: ran.append(1) or program(*a)  # noqa: E731
+    monkeypatch.setattr(system_module, "_accelerations_py", counted)
+    qdd, lam = system.accelerations(0.0, xs, us), system.multipliers(0.0, xs, us)
+    assert len(ran) == 10  # every row of both calls ran as Python
+    many = np.repeat(xs, system_module.INTERPRETED_ROWS // 5 + 1, axis=0)
+    system.accelerations(0.0, many, np.zeros((len(many), system.n_u)))
+    assert len(ran) == 10  # a large batch goes to the kernel
+    monkeypatch.setattr(system_module, "INTERPRETED_POINTS", 0)
+    qdd_c, lam_c = system.accelerations(0.0, xs, us), system.multipliers(0.0, xs, us)
+    assert len(ran) == 10
+    scale = max(1.0, np.abs(qdd_c).max(), np.abs(lam_c).max() if lam_c.size else 0.0)
+    np.testing.assert_allclose(qdd, qdd_c, rtol=0, atol=1e-14 * scale)
+    np.testing.assert_allclose(lam, lam_c, rtol=0, atol=1e-14 * scale)

@@ -5,6 +5,7 @@ does not look past the function it caches)."""
 from __future__ import annotations
 
 import importlib.util
+import re
 import sys
 
 import gymnasium as gym
@@ -157,3 +158,41 @@ def test_closures_are_fingerprinted_by_their_cells():
     _, r, *_ = env.step(np.zeros(2, np.float32))
     assert env._rt._fused is not None
     assert r == pytest.approx(-3.0 * env.state[0] ** 2 + 0.0, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "value", [np.arange(3.0) - 0.5, np.arange(3), np.asarray(7.25), 2.5, 3], ids=str
+)
+def test_the_fused_steps_column_writes_equal_numpys_assignment(value):
+    """The generated step writes a task function's result with row loops (`put_column`,
+    `put_rows`): the same values as numpy's broadcasting assignment, for one value per row
+    (float or int), one value for all (a scalar or a 0-d array)."""
+    from numba import njit
+
+    from envs.fused import put_column, put_rows
+
+    @njit
+    def write(out, flags, v, w):
+        put_column(out, 1, v)
+        put_rows(flags, w)
+
+    out, expected = np.zeros((3, 2)), np.zeros((3, 2))
+    flags = np.zeros(3, dtype=bool)
+    write(out, flags, value, np.array([True, False, True]))
+    expected[:, 1] = value
+    assert np.array_equal(out, expected)
+    assert flags.tolist() == [True, False, True]
+
+
+def test_the_generated_step_names_parameters_and_terms_as_the_book_does():
+    """`q` is the coordinates and `Q` the generalised forces in the book: the generated step
+    calls the model's parameters `model_params`, the task's record `task_params`, and the
+    reward terms `terms`."""
+    env = gym.make("Lagrange/TwoLinkArm-v1")
+    env.reset(seed=0)
+    module = sys.modules[env.unwrapped._rt._fused.py_func.__module__]
+    with open(module.__file__, encoding="utf-8") as fh:
+        text = fh.read()
+    assert "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params," in text
+    assert "terms = F_[" in text
+    assert not re.search(r"\b[pqQ]\b", text)
