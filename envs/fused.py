@@ -213,18 +213,7 @@ def source(plan: dict) -> str:
             "    (N, n_q) are added to the forcing (model_params: each row's parameters;",
             '    task_params: the record the task\'s functions read)."""',
         ]
-    for name, start, width in plan["floats"]:
-        _segment(lines, name, "F_", start, width)
-    for name, start in plan["bools"]:
-        _segment(lines, name, "B_", start, None)
-    for name, start, length, shape in plan["constants"]:
-        buf = "K_" if name in plan["integer_constants"] else "C_"
-        if shape is None:
-            lines.append(f"    {name} = {buf}[{start}]")
-        else:
-            lines.append(f"    {name} = {buf}[{start}:{start + length}]")
-            if len(shape) == 2:
-                lines[-1] += f".reshape(({shape[0]}, {shape[1]}))"
+    _unpack(lines, plan)
     lines += [
         "    if not _apply(actions, input_mid, input_half, actuated, A, U):",
         "        return -1",
@@ -266,6 +255,23 @@ def source(plan: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _unpack(lines: list[str], plan: dict) -> None:
+    """Append the lines that name the runtime's arrays and constants as views of the flat
+    buffers F_ (floats), B_ (booleans), C_ (real constants) and K_ (integer constants)."""
+    for name, start, width in plan["floats"]:
+        _segment(lines, name, "F_", start, width)
+    for name, start in plan["bools"]:
+        _segment(lines, name, "B_", start, None)
+    for name, start, length, shape in plan["constants"]:
+        buf = "K_" if name in plan["integer_constants"] else "C_"
+        if shape is None:
+            lines.append(f"    {name} = {buf}[{start}]")
+        else:
+            lines.append(f"    {name} = {buf}[{start}:{start + length}]")
+            if len(shape) == 2:
+                lines[-1] += f".reshape(({shape[0]}, {shape[1]}))"
 
 
 def _task_lines(plan: dict) -> list[str]:
