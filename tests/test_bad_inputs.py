@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import types
 import warnings
 
@@ -264,7 +265,7 @@ BOUNDS = {
         ["`start`", "beyond `limits['x']`"],
     ),
     "a handover shaping of 1e308": (
-        lambda: __import__("agents.control.handover").handover.handover_options(
+        lambda: importlib.import_module("agents.control.handover").handover_options(
             {"level": 1.0, "shaping": 1e308}
         ),
         ["shaping in [0, 1e+06]"],
@@ -437,7 +438,7 @@ MISSPELT = {
         "Did you mean 'rk4'?",
     ),
     "algorithm": (
-        lambda: __import__("agents.learning.hparams").hparams.check_algo_name("sax"),
+        lambda: importlib.import_module("agents.learning.hparams").check_algo_name("sax"),
         "Did you mean 'sac'?",
     ),
 }
