@@ -5,9 +5,9 @@
 For each environment (default: the built-in Lagrange envs; any Lagrange env id or
 Gymnasium's module:Env-v0 form): random, zero torque, the task's heuristic (where it
 declares one), LQR, and an SB3 agent trained with the task's algorithm and hyperparameters
-(`agents.hparams`), each scored on the same seeded episodes. Prints a Markdown
+(`agents.learning.hparams`), each scored on the same seeded episodes. Prints a Markdown
 comparison (how episodes ended, 95 % intervals, findings claimed only where the intervals
-separate: `agents.report`) and writes it, a CSV and a figure to runs/check/.
+separate: `agents.scoring.report`) and writes it, a CSV and a figure to runs/check/.
 
 Training runs live under runs/check/train/ENV/ALGO_seedS_Nsteps, one directory per budget:
 a re-run with the same budget resumes (or reuses) its run, another budget starts a fresh
@@ -29,8 +29,7 @@ from pathlib import Path
 from envs.checks import Unsupported
 
 from . import evaluate as programs
-from . import hparams, learned, params, randomization
-from .budget import budget_arg
+from . import params
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -44,11 +43,17 @@ from .common import (
     task_of,
     write_atomic,
 )
-from .defaults import describe
 from .evaluate import BASELINES, heuristic_of
-from .fingerprint import check_fingerprint
-from .hparams import ALGOS, load_hyperparams
-from .report import (
+from .learning import hparams, randomization
+from .learning.budget import budget_arg
+from .learning.defaults import describe
+from .learning.fingerprint import check_fingerprint
+from .learning.hparams import ALGOS, load_hyperparams
+from .learning.rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .learning.timing import TIME_FILE as TIME_FILE
+from .learning.timing import record_segment
+from .scoring import learned
+from .scoring.report import (
     Refused,
     Row,
     Training,
@@ -59,9 +64,6 @@ from .report import (
     training_lines,
     write_csv,
 )
-from .rundir import check_earlier_run, latest_checkpoint, run_dir_of
-from .timing import TIME_FILE as TIME_FILE
-from .timing import record_segment
 from .train import TrainingInterrupted, train
 
 
@@ -70,7 +72,7 @@ def train_timed(
 ):
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
     result and the run's `Training` record, whose time is summed over resumed segments.
-    seconds: a wall-clock budget instead (agents.budget; `budget` is then not used)."""
+    seconds: a wall-clock budget instead (agents.learning.budget; `budget` is then not used)."""
     found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
     start = found[0] if found else 0
     try:
@@ -116,8 +118,8 @@ def check_env(
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
     named in the rows relative to `report`, the report's directory; default `out`). The
-    agent trains with `randomize` (agents.randomization) if given; every agent is scored
-    on the nominal env. seconds: a wall-clock budget (agents.budget) instead of steps;
+    agent trains with `randomize` (agents.learning.randomization) if given; every agent is scored
+    on the nominal env. seconds: a wall-clock budget (agents.learning.budget) instead of steps;
     diagnoses: a list the lines of a failed agent's diagnosis are appended to; refused: a
     list each agent not run is appended to (`Refused`, with its one-line reason)."""
     algo = algo or hparams.check_algo(env_id)
@@ -148,7 +150,7 @@ def check_env(
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
     length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
     log(f"  training {algo.upper()} {length} in {run_dir} ...")
-    log(f"  ({describe(load_hyperparams(algo, env_id, hyperparams))}; agents.defaults)")
+    log(f"  ({describe(load_hyperparams(algo, env_id, hyperparams))}; agents.learning.defaults)")
     result, training = train_timed(
         env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
     )
@@ -225,8 +227,8 @@ def run_check(
 ) -> list[Row]:
     """Check every environment (default: all of `envs.ENV_IDS`); write the report to
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
-    the task's `algo`). randomize: train with randomised parameters (agents.randomization).
-    seconds: train each agent until solved within this wall-clock budget (agents.budget;
+    the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
+    seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
     always a fresh run: a clock cannot be resumed)."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
@@ -293,7 +295,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--hyperparams",
         metavar="FILE",
-        help="YAML overriding the packaged hyperparameters (format of agents/hyperparams/*.yml)",
+        help="YAML overriding the packaged hyperparameters "
+        "(format of agents/learning/hyperparams/*.yml)",
     )
     parser.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes per agent"
@@ -310,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=budget_arg,
         help="train each agent until solved (>= 80 %% evaluated success twice in a row) "
         "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
-        "instead of --timesteps (agents.budget)",
+        "instead of --timesteps (agents.learning.budget)",
     )
     parser.add_argument(
         "--out",

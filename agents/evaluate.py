@@ -26,8 +26,9 @@ from .common import (
     positive_int,
     task_of,
 )
-from .episodes import ENDINGS, EvalStats, run_episodes  # noqa: F401  (ENDINGS: as before)
-from .policies import RandomPolicy, SB3Policy, ZeroPolicy
+from .control.policies import RandomPolicy, ZeroPolicy
+from .scoring.episodes import ENDINGS, EvalStats, run_episodes  # noqa: F401  (ENDINGS: as before)
+from .scoring.trained import SB3Policy
 
 BASELINES = ("random", "zero", "heuristic", "lqr", "plan")
 
@@ -60,11 +61,11 @@ def make_agent(name: str, env, seed: int = 0):
     if name == "heuristic":
         return build_heuristic(env)
     if name == "lqr":
-        from .lqr_policy import LQRPolicy
+        from .control.lqr_policy import LQRPolicy
 
         return LQRPolicy(env)
     if name == "plan":  # trajectory optimisation + time-varying LQR + LQR
-        from .tvlqr import PlanPolicy
+        from .control.tvlqr import PlanPolicy
 
         return PlanPolicy(env)
     path = Path(name)
@@ -72,7 +73,7 @@ def make_agent(name: str, env, seed: int = 0):
         policy = SB3Policy.load(path, env)
         if policy.handover is None:
             return policy
-        from .handover import HandOverPolicy, handover_options
+        from .control.handover import HandOverPolicy, handover_options
 
         h = handover_options(policy.handover)
         return HandOverPolicy(policy, env, h["level"], h["verify"], h["verify_level"])
@@ -93,9 +94,9 @@ def evaluate(
 ) -> EvalStats:
     """Run `episodes` episodes of `agent` (a name, a path or a policy object) from seeds
     seed, seed + 1, ...; record the first one as a video if `video_dir` is given.
-    randomize: draw each episode's physical parameters (agents.randomization, as training
+    randomize: draw each episode's physical parameters (agents.learning.randomization, as training
     does); the model-based agents keep the nominal model."""
-    from .randomization import env_kwargs
+    from .learning.randomization import env_kwargs
 
     env_id = check_env_id(env_id)
     if episodes < 1:
@@ -169,7 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     params.add_option(parser)
     parser.add_argument("--video", metavar="DIR", help="record the first episode to DIR (mp4)")
     parser.add_argument("--stochastic", action="store_true", help="sample trained policies")
-    from .randomization import add_option
+    from .learning.randomization import add_option
 
     add_option(parser, "each episode", "; the model-based agents keep the nominal model")
     return parser
@@ -191,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     from .common import set_torch_threads
 
     set_torch_threads(DEFAULT_TORCH_THREADS)
-    from .randomization import describe, parse_option
+    from .learning.randomization import describe, parse_option
 
     try:
         randomize = parse_option(args.randomize)

@@ -5,7 +5,7 @@
     python -m agents.identify Lagrange/TwoLinkArm-v1 --data arm.npz --out runs/identify/arm
 
 `--record` runs an exciting input on the env (with `--plant` parameters standing in for
-the machine; `agents.recording`) and writes the record (t, q, qd, u) to an .npz file; a
+the machine; `agents.control.recording`) and writes the record (t, q, qd, u) to an .npz file; a
 record of a real machine has the same arrays. `--data` fits it (`dynamics.identify`) and
 writes to `--out`: `parameters.yml` (every model parameter, what `gym.make(env_id,
 **parameters)` takes), `report.md` (estimates with standard errors and 95 % intervals, the
@@ -27,7 +27,7 @@ import numpy as np
 from dynamics.files import atomic_path, write_atomic
 
 from .common import UserError, check_env_id, fail
-from .recording import fit, model_of
+from .control.recording import fit, model_of
 
 
 def _assignments(items, label: str) -> dict:
@@ -190,7 +190,7 @@ def main(argv=None) -> int:
         if (args.record is None) == (args.data is None):
             raise UserError("give one of --record FILE or --data FILE.")
         if args.record is not None:
-            from .recording import record
+            from .control.recording import record
 
             noise = tuple(float(v) for v in args.noise.split(","))
             data = record(env_id, args.seconds, _assignments(args.plant, "--plant"), noise,

@@ -10,7 +10,6 @@ import gymnasium as gym
 import numpy as np
 
 from . import params
-from .closed_loop import evaluate_near, expected_region, largest_region, perturbed_starts
 from .common import (
     UserError,
     atomic_path,
@@ -19,8 +18,8 @@ from .common import (
     non_negative_int,
     positive_int,
 )
-from .linear import UncontrollableError
-from .lqr_policy import (  # noqa: F401  (the library's names, as imported from here before)
+from .control.linear import UncontrollableError
+from .control.lqr_policy import (  # noqa: F401  (the library's names, as imported from here before)
     LQRDesign,
     LQRPolicy,
     bryson_weights,
@@ -29,7 +28,8 @@ from .lqr_policy import (  # noqa: F401  (the library's names, as imported from 
     linearize,
     start_region,
 )
-from .policies import ZeroPolicy
+from .control.policies import ZeroPolicy
+from .scoring.closed_loop import evaluate_near, expected_region, largest_region, perturbed_starts
 
 
 def save_figure(fig, path: str) -> None:

@@ -133,8 +133,8 @@ def tag(env_ids) -> str:
 
 def record(env_id: str, env_options: dict) -> dict:
     """A run's config.yml entry of what its envs were made with: the randomisation's
-    ranges (agents.randomization) and the applied parameters ({} when neither)."""
-    from .randomization import recorded
+    ranges (agents.learning.randomization) and the applied parameters ({} when neither)."""
+    from .learning.randomization import recorded
 
     options = {}
     if env_options:  # what the setting meant for this env: absolute ranges, model units
@@ -147,7 +147,7 @@ def record(env_id: str, env_options: dict) -> dict:
 def check_resume(run_dir: str | Path, env_id: str) -> None:
     """UserError when the run in `run_dir` recorded other parameters than those applied
     now: a resumed run trains on what it began with, and its record says so."""
-    from .rundir import read_config
+    from .learning.rundir import read_config
 
     config = read_config(Path(run_dir))
     if not config:

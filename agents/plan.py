@@ -22,7 +22,7 @@ from .common import (
     non_negative_int,
     positive_number,
 )
-from .ilqr import (  # noqa: F401  (the planner's names, as imported from here before)
+from .control.ilqr import (  # noqa: F401  (the planner's names, as imported from here before)
     DEFAULTS,
     Plan,
     PlanError,
@@ -40,7 +40,7 @@ from .ilqr import (  # noqa: F401  (the planner's names, as imported from here b
 def run(env_id: str, seed: int = 0, horizon: float | None = None, replan: bool = False):
     """One episode of PlanPolicy from the task's start drawn with `seed`: (policy, tracker,
     states (T + 1, 2n), actions (T, n_a), return, success)."""
-    from .tvlqr import PlanPolicy
+    from .control.tvlqr import PlanPolicy
 
     env = gym.make(env_id)
     try:

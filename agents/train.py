@@ -1,6 +1,6 @@
 """Train a stable-baselines3 agent on an environment: `python -m agents.train ENV_ID --algo ppo`.
 
-Hyperparameters come from agents/hyperparams/<algo>.yml (keyed by env id), overridden by a
+Hyperparameters come from agents/learning/hyperparams/<algo>.yml (keyed by env id), overridden by a
 file of the same format given with `--hyperparams`. A run directory holds config.yml, checkpoints/
 (atomic; `--resume` continues from the newest, keeping the timestep count, the
 learning-rate schedule and the evaluation schedule), model.zip and vecnormalize.pkl (atomic),
@@ -10,9 +10,9 @@ Ctrl-C (SIGINT) or SIGTERM stops training at the next environment step and saves
 its normalisation statistics and a checkpoint before exiting with 128 + the signal number
 (130 for Ctrl-C); a second signal stops at once without saving. A directory that holds an
 earlier run is only trained into with `--resume` (continue it) or `--overwrite` (start
-afresh); only one process trains into a directory at a time (agents.rundir).
-The pieces: agents.hparams (hyperparameters to SB3's arguments), agents.vecenv (the envs),
-agents.rundir (the run directory), agents.callbacks (checkpoints, evaluations, the stop).
+afresh); only one process trains into a directory at a time (agents.learning.rundir).
+The pieces, in agents.learning: hparams (hyperparameters to SB3's arguments), vecenv (the
+envs), rundir (the run directory), callbacks (checkpoints, evaluations, the stop).
 """
 
 from __future__ import annotations
@@ -29,18 +29,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import ProgressBarCallback
 
-from . import budget as budgets
-from . import params, randomization
-from .callbacks import (
-    AtomicCheckpoint,
-    EvaluationStopped,
-    GracefulStop,
-    LogProgress,
-    ScheduledEval,
-    _StopFirst,
-    build_or_load,
-    save_final,
-)
+from . import params
 from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
@@ -51,10 +40,22 @@ from .common import (
     trained_line,
     write_atomic,
 )
-from .curves import CurveLogger
-from .fingerprint import task_fingerprint
-from .hparams import ALGOS, check_entries, load_hyperparams
-from .rundir import (
+from .learning import budget as budgets
+from .learning import randomization
+from .learning.callbacks import (
+    AtomicCheckpoint,
+    EvaluationStopped,
+    GracefulStop,
+    LogProgress,
+    ScheduledEval,
+    _StopFirst,
+    build_or_load,
+    save_final,
+)
+from .learning.curves import CurveLogger
+from .learning.fingerprint import task_fingerprint
+from .learning.hparams import ALGOS, check_entries, load_hyperparams
+from .learning.rundir import (
     check_resume_randomize,
     default_run_dir,
     exclusive,
@@ -62,7 +63,7 @@ from .rundir import (
     read_config,
     remove_stale_temporaries,
 )
-from .vecenv import VECTORIZATIONS, make_envs
+from .learning.vecenv import VECTORIZATIONS, make_envs
 
 
 @dataclass
@@ -114,16 +115,17 @@ def train(
     """Train `algo` on `env_id`; return where the model is and how it evaluated.
 
     timesteps, n_envs: override the YAML's n_timesteps / n_envs. hyperparams: a YAML file
-    in the format of agents/hyperparams/<algo>.yml whose entries override the packaged ones.
+    in the format of agents/learning/hyperparams/<algo>.yml whose entries override the
+    packaged ones.
     eval_freq and checkpoint_freq count environment steps over the whole run (default:
-    total/10 but at least 2000, and total/5; with `budget`, agents.budget's schedule). A
+    total/10 but at least 2000, and total/5; with `budget`, agents.learning.budget's schedule). A
     directory holding an earlier run needs `resume` (continue from its newest checkpoint)
     or `overwrite` (delete it, start afresh); an off-policy checkpoint without its replay
     buffer is refused unless `allow_missing_buffer` (the run then goes on with an empty
     buffer). randomize: the
-    hyperparameter `randomize` (agents.randomization, e.g. {"inertial": 0.25}) overriding
+    hyperparameter `randomize` (agents.learning.randomization, e.g. {"inertial": 0.25}) overriding
     the YAML's; a resumed run without it keeps the one its config.yml records. budget:
-    wall-clock seconds; train until solved or out of time (agents.budget), `timesteps`
+    wall-clock seconds; train until solved or out of time (agents.learning.budget), `timesteps`
     then caps the steps (default: no cap, constant learning rates).
 
     Raises UserError for problems with the arguments, the hyperparameters or the run
@@ -270,7 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m agents.train",
         description="Train a stable-baselines3 agent with the per-environment hyperparameters "
-        "of agents/hyperparams/<algo>.yml. Writes a run directory with checkpoints, the "
+        "of agents/learning/hyperparams/<algo>.yml. Writes a run directory with checkpoints, the "
         "model, normalisation statistics and learning curves (CSV and PNG). Ctrl-C saves "
         "the model and a checkpoint, then exits with status 130; --resume continues.",
     )
@@ -282,14 +284,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=budgets.budget_arg,
         help="wall-clock budget (600, 90s, 10m, 1.5h): train until the evaluated success "
         "holds (>= 80 %% at 2 evaluations in a row) or the time is spent; keeps the best "
-        "model (agents.budget). Not repeatable: use --timesteps for that",
+        "model (agents.learning.budget). Not repeatable: use --timesteps for that",
     )
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--n-envs", type=positive_int, help="parallel envs (default: YAML n_envs)")
     parser.add_argument(
         "--hyperparams",
         metavar="FILE",
-        help="YAML file in the format of agents/hyperparams/<algo>.yml; its entries override",
+        help="YAML file in the format of agents/learning/hyperparams/<algo>.yml; "
+        "its entries override",
     )
     parser.add_argument("--run-dir", help="output directory (default runs/train/ENV/ALGO_seedS)")
     params.add_option(parser)

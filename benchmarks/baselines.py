@@ -14,7 +14,7 @@ and an existing results file keeps every other env's rows with the run that meas
 The speed part measures what chose the defaults: PPO training throughput with one and two
 torch threads, how fast SB3's DummyVecEnv of single envs steps compared with the
 environment's native vector env, and PPO's env-steps/s on 16 copies through each (the
-native env driven by SB3 through agents.vecenv, autoresetting in the same step).
+native env driven by SB3 through agents.learning.vecenv, autoresetting in the same step).
 """
 
 from __future__ import annotations
@@ -72,14 +72,14 @@ def stepping_rates(env_id: str, n_envs: int = 8, steps: int = 2000) -> tuple[flo
 
 
 def ppo_vectorization_rate(env_id: str, vectorization: str, n_envs: int = 16) -> float:
-    """PPO env-steps/s on `n_envs` copies made by agents.vecenv ("native" or "dummy"), the
+    """PPO env-steps/s on `n_envs` copies made by agents.learning.vecenv ("native" or "dummy"), the
     task's PPO settings, 4 rollouts of 256 steps (the first, with compilation, not timed)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from agents import hparams
-    from agents.hparams import algo_kwargs
-    from agents.vecenv import make_sb3_vec_env
+    from agents.learning import hparams
+    from agents.learning.hparams import algo_kwargs
+    from agents.learning.vecenv import make_sb3_vec_env
 
     hp = {**hparams.load("ppo", env_id), "n_steps": 256, "batch_size": 512}
     venv = VecNormalize(make_sb3_vec_env(env_id, n_envs, 0, vectorization))

@@ -6,7 +6,7 @@
 For each case a hidden plant has some parameters off nominal by a factor at which the
 nominal model-based controller fails in the robustness benchmark (benchmarks/robustness.py,
 the README's table of where each falls below 50 %). The plant is recorded under an exciting
-input (`agents.recording`: 20 s, sensor noise std 1e-3 rad or m and 1e-2 per s), its
+input (`agents.control.recording`: 20 s, sensor noise std 1e-3 rad or m and 1e-2 per s), its
 inertial parameters are identified from the record (`dynamics.identify`, the model's other
 parameters as nominal), and the controller is designed again on the identified model
 (`gym.make(env_id, **identified)`). Both designs, and a design on the hidden plant's true
@@ -40,8 +40,8 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 from agents.common import check_env_id, write_atomic  # noqa: E402
-from agents.recording import fit, record  # noqa: E402
-from agents.report import wilson_interval  # noqa: E402
+from agents.control.recording import fit, record  # noqa: E402
+from agents.scoring.report import wilson_interval  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -68,10 +68,10 @@ def controller(kind: str, env_id: str, params: dict):
     """A policy designed on `env_id` with `params` (the designer's model and actuators)."""
     env = gym.make(env_id, **params)
     if kind == "lqr":
-        from agents.lqr_policy import LQRPolicy
+        from agents.control.lqr_policy import LQRPolicy
 
         return LQRPolicy(env)
-    from agents.tvlqr import PlanPolicy
+    from agents.control.tvlqr import PlanPolicy
 
     policy = PlanPolicy(env)
     policy.RESET_TOLERANCE = np.inf  # the plant is not its model: new episodes by their start

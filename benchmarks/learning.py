@@ -1,5 +1,5 @@
 """The learning benchmark: systems x learners, each trained with the task's derived
-defaults until solved within a wall-clock budget (agents.budget).
+defaults until solved within a wall-clock budget (agents.learning.budget).
 
     python benchmarks/learning.py                                    # every system, 4 learners
     python benchmarks/learning.py examples.furuta:Examples/Furuta-v0 --algos ppo,sac --budget 5m
@@ -38,9 +38,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import gymnasium as gym  # noqa: E402
 
-from agents.budget import budget_arg  # noqa: E402
 from agents.common import check_env_id, env_slug, register_envs, write_atomic  # noqa: E402
-from agents.report import wilson_interval  # noqa: E402
+from agents.learning.budget import budget_arg  # noqa: E402
+from agents.scoring.report import wilson_interval  # noqa: E402
 
 ALGOS = ("ppo", "sac", "tqc", "crossq")
 FIELDS = ("system algo seed success n low high to80_s to80_steps trained_steps train_s "
@@ -74,7 +74,7 @@ def default_systems() -> tuple[list[str], list[str]]:
 def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dict:
     """Train one learner on one system within the budget and score the kept model."""
     from agents import evaluate as programs
-    from agents.learned import alone_rows
+    from agents.scoring.learned import alone_rows
     from agents.train import train
 
     env_id = check_env_id(system, lagrange=True)
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from agents.common import set_torch_threads
-    from agents.hparams import check_algo_name
+    from agents.learning.hparams import check_algo_name
 
     set_torch_threads(1)
     algos = [check_algo_name(a.strip()) for a in args.algos.split(",") if a.strip()]
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     header = (
         f"# Learning benchmark\n\n{datetime.date.today()}, {platform.node() or 'this machine'}"
         f" ({os.cpu_count()} cores), budget {args.budget:g} s per run, derived defaults "
-        f"(agents.defaults). Command: `python benchmarks/learning.py "
+        f"(agents.learning.defaults). Command: `python benchmarks/learning.py "
         f"{' '.join(sys.argv[1:] if argv is None else argv)}`"
         + "".join(f"\n\nSkipped: {s}" for s in skipped)
     )

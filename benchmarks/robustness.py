@@ -10,7 +10,7 @@ parameter inaccuracies, measurement noise, torque noise, torque response, time d
 perturbations): one quantity at a time is moved away from the nominal plant over a grid,
 and every agent runs the same seeded episodes at every point:
 
-- each inertial parameter (kg, kg*m^2: agents.randomization) over [0.75, 1.25] x nominal,
+- each inertial parameter (kg, kg*m^2: agents.learning.randomization) over [0.75, 1.25] x nominal,
   each body the model declares as a whole (`body NAME`: its moments times one factor), and
   all of them together (`inertial`: every mass and inertia times the same factor); a point
   that gives a body an inertia no mass distribution has (or breaks a model condition) is
@@ -56,7 +56,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 from agents.common import UserError, env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
-from agents.report import wilson_interval  # noqa: E402
+from agents.scoring.report import wilson_interval  # noqa: E402
 from benchmarks.robustness_args import (  # noqa: E402
     PERTURBATIONS,
     build_parser,
@@ -68,7 +68,7 @@ from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 
 RANDOMIZED = {"inertial": 0.25}
-"""How `ppo-randomized` is trained (agents.randomization)."""
+"""How `ppo-randomized` is trained (agents.learning.randomization)."""
 ALL_INERTIAL = "inertial"
 """The quantity that scales every inertial parameter together (the same factor)."""
 
@@ -87,7 +87,7 @@ def quantities(env_id: str, grid: int, wanted: list[str] | None, scales=None) ->
     parameter, 'perturb' for every perturbation; None: all), each over its grid: `grid`
     points, the parameters' scales of the nominal over [0.75, 1.25] unless `scales` lists
     them."""
-    from agents.randomization import inertial_parameters
+    from agents.learning.randomization import inertial_parameters
 
     env = lagrange_env(gym.make(env_id))
     system, plant = env.system, env.plant
@@ -157,7 +157,7 @@ def agents_of(env_id: str, wanted: list[str], models: Path, train: bool, log) ->
     """{agent name: a function venv -> policy} for the agents of `wanted` that `env_id`
     has (plan and heuristic where its task declares them; PPO from `models`)."""
     from agents.evaluate import make_agent
-    from agents.policies import SB3Policy
+    from agents.scoring.trained import SB3Policy
 
     task = task_of(env_id)
     out = {}
@@ -179,11 +179,11 @@ def agents_of(env_id: str, wanted: list[str], models: Path, train: bool, log) ->
 
 
 def _trained_maker(policy):
-    """venv -> the trained policy, with its run's LQR hand-over (agents.handover) built for
+    """venv -> the trained policy, with its run's LQR hand-over (agents.control.handover) built for
     that venv where it was trained with one (as agents.evaluate acts)."""
     if policy.handover is None:
         return lambda venv: policy
-    from agents.handover import HandOverPolicy, handover_options
+    from agents.control.handover import HandOverPolicy, handover_options
 
     h = handover_options(policy.handover)
     return lambda venv: HandOverPolicy(policy, venv, h["level"], h["verify"], h["verify_level"])
@@ -194,7 +194,7 @@ def _plan_maker():
 
     def make(venv):
         if "policy" not in cache:
-            from agents.tvlqr import PlanPolicy
+            from agents.control.tvlqr import PlanPolicy
 
             cache["policy"] = PlanPolicy(venv)
             cache["policy"].RESET_TOLERANCE = np.inf  # new episodes: episode_start only

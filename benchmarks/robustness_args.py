@@ -111,7 +111,7 @@ def check_quantities(env_ids: list[str], wanted: list[str]) -> None:
     import gymnasium as gym
 
     from agents.common import lagrange_env
-    from agents.randomization import inertial_parameters
+    from agents.learning.randomization import inertial_parameters
 
     known = {*GROUPS, *PERTURBATIONS, "inertial"}
     for env_id in env_ids:
@@ -144,7 +144,7 @@ def check_models(env_id: str, models: Path, wanted: list[str]) -> None:
     env (its config.yml's id, or its spaces), before any episode runs (as agents.evaluate)."""
     import gymnasium as gym
 
-    from agents.policies import SB3Policy
+    from agents.scoring.trained import SB3Policy
 
     for kind, name in (("nominal", "ppo"), ("randomized", "ppo-randomized")):
         run = models / env_slug(env_id) / kind

@@ -166,7 +166,7 @@ TASK = Task(
         default_scale=0.1,
         region={"theta1": 0.01, "theta2": 0.01, "theta1_dot": 0.02, "theta2_dot": 0.02},
     ),
-    heuristic=Heuristic("energy swing-up + LQR", "agents.policies:SwingUpPolicy"),
+    heuristic=Heuristic("energy swing-up + LQR", "agents.control.policies:SwingUpPolicy"),
     hyperparams={"ppo": {"n_timesteps": 150_000, "gamma": 0.99}},
     draw=draw,
 )
@@ -186,7 +186,7 @@ TASK_V2 = dataclasses.replace(
     TASK,
     max_input=elbow_limit_v2,
     hyperparams={
-        # PPO swings up; LQR takes over inside its basin (agents.handover): LQR captures
+        # PPO swings up; LQR takes over inside its basin (agents.control.handover): LQR captures
         # from 97.5 % of random directions on the level set dx' P dx = 1000, and from the
         # states within 20 x 1000 where a 3 s simulation of it succeeds. The energy shaping
         # pays for pumping towards the inverted energy: at 100, two seeds of three stayed in

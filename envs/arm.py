@@ -186,7 +186,7 @@ TASK = Task(
         scales={"theta1": 0.05, "theta2": 0.05},
         region={"theta1": 0.3, "theta2": 0.3, "theta1_dot": 0.5, "theta2_dot": 0.5},
     ),
-    heuristic=Heuristic("PD + gravity compensation", "agents.policies:GravityPDPolicy"),
+    heuristic=Heuristic("PD + gravity compensation", "agents.control.policies:GravityPDPolicy"),
     hyperparams={
         # 1M steps, 50 evaluation episodes, seeds 0, 1, 2: 90, 96, 94 % success (v0). With 8
         # copies, n_steps 512, gamma 0.99: 46 %.

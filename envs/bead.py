@@ -190,7 +190,7 @@ TASK = Task(
         scales={"r": 0.1, "phi": 0.2, "r_dot": 0.1},
         region={"r": 0.1, "phi": 0.05, "r_dot": 0.1, "phi_dot": 0.1},
     ),
-    heuristic=Heuristic("cascaded PD (ball and beam)", "agents.policies:BeadCascadePolicy"),
+    heuristic=Heuristic("cascaded PD (ball and beam)", "agents.control.policies:BeadCascadePolicy"),
     hyperparams={"ppo": {"n_timesteps": 200_000}},  # 100 % success over 50 episodes, seed 0
     draw=draw,
 )

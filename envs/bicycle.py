@@ -32,12 +32,12 @@ constraints. `info["constraint_residual"]` is the velocity constraints' residual
 the front contact's height (output `front_contact_height`) drifts by integration error
 only (3e-11 m at most over five LQR-ridden episodes; tests/envs/test_bicycle_env.py).
 
-Plain `lqr` (agents.lqr_policy) is refused: the pitch and the yaw rate are tied to lean and
+Plain `lqr` (agents.control.lqr_policy) is refused: the pitch and the yaw rate are tied to lean and
 steer by the constraints, so the full linearisation cannot be cut down to the observed lean
 and steer states exactly. The `heuristic` baseline is the LQR that belongs here: a
 speed-scheduled LQR on (phi, delta, phi', delta') from the constraint-reduced linearisation
 (`dynamics.bicycle.reduced_linearization`) at v*, plus proportional speed control on T_R
-(`agents.bicycle_policy.BicycleLQRPolicy`).
+(`agents.control.bicycle_policy.BicycleLQRPolicy`).
 
 ## Action Space
 `Box(-1, 1, (2,), float32)`; action -1 and 1 are the input's limits (`max_input`,
@@ -292,7 +292,7 @@ TASK = Task(
         scales={"phi": 0.05, "delta": 0.1, "phi_dot": 0.5, "delta_dot": 1.0},
     ),
     heuristic=Heuristic(
-        "speed-scheduled LQR on lean and steer", "agents.bicycle_policy:BicycleLQRPolicy"
+        "speed-scheduled LQR on lean and steer", "agents.control.bicycle_policy:BicycleLQRPolicy"
     ),
     hyperparams={
         "ppo": {

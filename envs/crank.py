@@ -217,7 +217,7 @@ TASK = Task(
     max_episode_steps=200,
     # >= 99 % success up to 32x this region (any crank angle)
     lqr=LQRHints(scales={"theta": 0.05}, region={"theta": 0.2, "theta_dot": 0.5}),
-    heuristic=Heuristic("PD + gravity compensation", "agents.policies:GravityPDPolicy"),
+    heuristic=Heuristic("PD + gravity compensation", "agents.control.policies:GravityPDPolicy"),
     hyperparams={"ppo": {"n_timesteps": 100_000}},
     draw=draw,
 )

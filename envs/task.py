@@ -188,7 +188,7 @@ class Task:
         (N,) array} of all rows (others 0; `(x, goal, p, system)` to get the compiled
         model; see `envs.names`). Both functions are tried when the env is made.
     lqr, heuristic, algo, hyperparams: what agents use (hyperparams by algorithm name,
-        in the format of agents/hyperparams/<algo>.yml).
+        in the format of agents/learning/hyperparams/<algo>.yml).
     randomize: the model parameters each copy draws by default (the forms of the env
         option `randomize=`, see `envs.randomize`), or None; the env option replaces it,
         `randomize=False` turns it off.

@@ -7,7 +7,7 @@ same --storage and --study joins one study, on one machine or on several that sh
 
 --storage is a journal file (Optuna's JournalFileBackend: safe for processes sharing a file
 system) or an RDB URL (sqlite:///runs/optuna.db, postgresql://...). A trial writes its
-hyperparameters as a YAML file in the format of agents/hyperparams/ppo.yml and trains
+hyperparameters as a YAML file in the format of agents/learning/hyperparams/ppo.yml and trains
 through `agents.train` (what `python -m agents.train ENV --hyperparams FILE` runs), so the
 task's own settings are the base; its value is the trained agent's mean return over
 --episodes seeded episodes (`agents.evaluate`, seeds from 1000: not the training's). The best

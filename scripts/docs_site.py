@@ -266,7 +266,7 @@ def env_facts(env_id: str) -> dict:
     import gymnasium as gym
     import numpy as np
 
-    from agents.linear import linearize, state_names
+    from agents.control.linear import linearize, state_names
 
     with warnings.catch_warnings():  # an older version's deprecation notice is no news here
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -319,7 +319,7 @@ def linearisation_section(env_id: str, level: str = "##") -> str:
         f"x0 = ({x0}) over ({names}), inputs u0 = ({u0}) over "
         f"({', '.join(f'`{s}`' for s in lin.inputs)}) holding it; "
         "d(dx)/dt = A dx + B du from the derived model's exact Jacobians "
-        "(`agents.linear.linearize`; B has a column per model input, the action drives "
+        "(`agents.control.linear.linearize`; B has a column per model input, the action drives "
         f"{', '.join(f'`{a}`' for a in task_of(env_id).actuated)}):\n\n"
         f"$$ A = {latex_matrix(lin.A)}, \\quad B = {latex_matrix(lin.B)} $$\n\n"
         f"Eigenvalues of A (1/s): {eigs}.\n"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import types
 import warnings
 
@@ -175,7 +176,7 @@ def test_a_non_negative_parameter_refuses_a_negative_value_and_range():
 
 
 def test_inertial_randomisation_draws_each_declared_body_as_a_whole():
-    from agents.randomization import env_kwargs
+    from agents.learning.randomization import env_kwargs
 
     kw = env_kwargs(DISK, {"inertial": 0.25})
     assert kw["randomize"]["J"] == {"dist": "same", "parameter": "I"}
@@ -264,7 +265,7 @@ BOUNDS = {
         ["`start`", "beyond `limits['x']`"],
     ),
     "a handover shaping of 1e308": (
-        lambda: __import__("agents.handover").handover.handover_options(
+        lambda: importlib.import_module("agents.control.handover").handover_options(
             {"level": 1.0, "shaping": 1e308}
         ),
         ["shaping in [0, 1e+06]"],
@@ -291,7 +292,7 @@ def test_choice_weights_near_the_float_limit_draw_normally():
 def test_a_resume_with_another_randomisation_is_refused(tmp_path):
     import yaml
 
-    from agents.rundir import check_resume_randomize as check_resume
+    from agents.learning.rundir import check_resume_randomize as check_resume
 
     config = {"env_id": ARM, "algo": "ppo", "hyperparams": {"randomize": {"inertial": 0.25}}}
     (tmp_path / "config.yml").write_text(yaml.safe_dump(config))
@@ -303,7 +304,7 @@ def test_a_resume_with_another_randomisation_is_refused(tmp_path):
 
 
 def test_the_zero_baseline_applies_zero_input_to_a_one_sided_input():
-    from agents.policies import ZeroPolicy
+    from agents.control.policies import ZeroPolicy
 
     env = envs.LagrangianEnv(dataclasses.replace(BASE, max_input=((0.0, 10.0),)))
     obs, _ = env.reset(seed=0)
@@ -437,7 +438,7 @@ MISSPELT = {
         "Did you mean 'rk4'?",
     ),
     "algorithm": (
-        lambda: __import__("agents.hparams").hparams.check_algo_name("sax"),
+        lambda: importlib.import_module("agents.learning.hparams").check_algo_name("sax"),
         "Did you mean 'sac'?",
     ),
 }
@@ -453,7 +454,7 @@ def test_every_misspelt_name_gets_a_suggestion(case):
 
 def test_one_table_of_algorithms_names_what_agents_train():
     """A task naming an algorithm agents.train cannot train is refused, not trained as PPO."""
-    from agents.hparams import algorithms
+    from agents.learning.hparams import algorithms
     from dynamics.checks import ALGORITHMS, INTEGRATORS
     from dynamics.methods import METHODS
 

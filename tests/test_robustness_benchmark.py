@@ -139,7 +139,7 @@ def test_each_perturbation_point_makes_its_env_with_the_agreed_option(bench, tmp
 def test_a_policy_trained_with_a_hand_over_acts_with_it(bench):
     """As agents.evaluate acts: the acrobot's PPO hands over to LQR (on the nominal model)."""
     from agents.common import task_of
-    from agents.handover import HandOverPolicy
+    from agents.control.handover import HandOverPolicy
 
     class Trained:
         handover = task_of(ACROBOT).hyperparams["ppo"]["handover"]

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import envs
-from agents import budget
-from agents.policies import SB3Policy
+from agents.learning import budget
+from agents.scoring.trained import SB3Policy
 from agents.train import main, train
 
 BEAD = next(e for e in envs.ENV_IDS if "/BeadOnRod-" in e)

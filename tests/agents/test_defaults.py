@@ -9,12 +9,12 @@ import pytest
 
 import envs
 import examples.furuta  # noqa: F401  (registers Examples/Furuta-v0)
-from agents import hparams
-from agents.budget import constant_schedules, parse_budget
-from agents.defaults import GAMMA_MAX, GAMMA_MIN, derived, discount, reward_span
-from agents.diagnosis import flat_components, success_edges
-from agents.shaping import LQRPotential, TaskRewardVecEnv
-from agents.vecenv import make_envs
+from agents.learning import hparams
+from agents.learning.budget import constant_schedules, parse_budget
+from agents.learning.defaults import GAMMA_MAX, GAMMA_MIN, derived, discount, reward_span
+from agents.learning.shaping import LQRPotential, TaskRewardVecEnv
+from agents.learning.vecenv import make_envs
+from agents.scoring.diagnosis import flat_components, success_edges
 
 FURUTA = "Examples/Furuta-v0"
 ACROBOT = next(e for e in envs.ENV_IDS if "/Acrobot-" in e)

@@ -12,9 +12,9 @@ import yaml
 import envs
 import examples.furuta  # noqa: F401  (registers Examples/Furuta-v0)
 from agents.common import UserError
-from agents.diagnosis import diagnose, rollout_ends, success_edges
 from agents.evaluate import make_agent
-from agents.fingerprint import check_fingerprint, task_fingerprint
+from agents.learning.fingerprint import check_fingerprint, task_fingerprint
+from agents.scoring.diagnosis import diagnose, rollout_ends, success_edges
 
 FURUTA = "Examples/Furuta-v0"
 

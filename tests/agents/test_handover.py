@@ -7,12 +7,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents import hparams
 from agents.common import UserError
+from agents.control.handover import CaptureSet, HandOverPolicy, HandOverVecEnv, handover_options
 from agents.evaluate import make_agent
-from agents.handover import CaptureSet, HandOverPolicy, HandOverVecEnv, handover_options
+from agents.learning import hparams
+from agents.learning.vecenv import make_sb3_vec_env
 from agents.train import train
-from agents.vecenv import make_sb3_vec_env
 
 ACROBOT = "Lagrange/Acrobot-v2"
 

@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 
 import dynamics
-from agents import closed_loop, linear, lqr
-from agents.policies import ZeroPolicy
+from agents import lqr
+from agents.control import linear
+from agents.control.policies import ZeroPolicy
+from agents.scoring import closed_loop
 from envs import acrobot
 
 

@@ -1,4 +1,4 @@
-"""Trajectory optimisation and time-varying LQR (agents.plan, agents.tvlqr), and the
+"""Trajectory optimisation and time-varying LQR (agents.plan, agents.control.tvlqr), and the
 acrobot they make solvable (Lagrange/Acrobot-v2)."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import pytest
 
 import envs
 from agents import plan as planning
+from agents.control.policies import input_response
+from agents.control.tvlqr import PlanPolicy, tvlqr
 from agents.evaluate import evaluate, make_agent
-from agents.policies import input_response
-from agents.tvlqr import PlanPolicy, tvlqr
 
 ACROBOT = "Lagrange/Acrobot-v2"
 

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import envs
+from agents.control.policies import GravityPDPolicy, SwingUpPolicy, input_response
 from agents.evaluate import evaluate, heuristic_of, make_agent
-from agents.policies import GravityPDPolicy, SB3Policy, SwingUpPolicy, input_response
+from agents.scoring.trained import SB3Policy
 from envs.checks import Unsupported
 
 

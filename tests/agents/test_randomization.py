@@ -8,10 +8,10 @@ import pytest
 import yaml
 
 from agents.common import UserError
-from agents.hparams import load_hyperparams
-from agents.randomization import env_kwargs, parse_option, ranges, scaled
+from agents.learning.hparams import load_hyperparams
+from agents.learning.randomization import env_kwargs, parse_option, ranges, scaled
+from agents.learning.vecenv import make_envs
 from agents.train import main, train
-from agents.vecenv import make_envs
 
 ARM, BEAD = "Lagrange/TwoLinkArm-v1", "Lagrange/BeadOnRod-v1"
 SMALL = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)

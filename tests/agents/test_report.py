@@ -8,7 +8,7 @@ import pytest
 
 import envs
 from agents.evaluate import EvalStats, evaluate
-from agents.report import (
+from agents.scoring.report import (
     Refused,
     Row,
     Training,
@@ -64,7 +64,7 @@ def test_wilson_interval_rejects_impossible_counts():
     [
         (lambda rng, size: rng.normal(3.0, 2.0, size), 3.0, (0.94, 0.96)),  # exact for normal
         # skewed: the t interval undercovers a little at n = 20 (it is still the better of
-        # t and percentile bootstrap here, see agents.report)
+        # t and percentile bootstrap here, see agents.scoring.report)
         (lambda rng, size: rng.exponential(1.0, size), 1.0, (0.89, 0.93)),
     ],
 )

@@ -7,8 +7,8 @@ import pytest
 
 import envs
 from agents.common import UserError
-from agents.policies import SB3Policy
-from agents.rundir import latest_checkpoint
+from agents.learning.rundir import latest_checkpoint
+from agents.scoring.trained import SB3Policy
 from agents.train import main, train
 
 
@@ -83,7 +83,7 @@ def test_resume_without_a_checkpoint_starts_fresh(tmp_path, capsys):
 
 
 def test_hyperparameters_exist_for_every_env_and_algorithm():
-    from agents import hparams
+    from agents.learning import hparams
 
     for algo in hparams.ALGOS:
         for env_id in envs.ENV_IDS:

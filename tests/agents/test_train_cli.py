@@ -91,7 +91,7 @@ def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
 def test_progress_shows_in_logs_as_periodic_lines(tmp_path, capsys, monkeypatch):
     """Where stderr is not a terminal (a log file: here, pytest's capture), training prints
     a line every LogProgress.every seconds instead of a progress bar."""
-    from agents.callbacks import LogProgress
+    from agents.learning.callbacks import LogProgress
 
     monkeypatch.setattr(LogProgress, "every", 0.0)
     train(BEAD, "ppo", 512, n_envs=1, run_dir=tmp_path, progress=True)

@@ -16,9 +16,9 @@ from stable_baselines3 import PPO, SAC
 
 import envs
 from agents import train as train_mod
-from agents.callbacks import load_replay_buffer, save_replay_buffer
 from agents.common import UserError, atomic_path
-from agents.rundir import is_stale_temporary, latest_checkpoint
+from agents.learning.callbacks import load_replay_buffer, save_replay_buffer
+from agents.learning.rundir import is_stale_temporary, latest_checkpoint
 from agents.train import TrainingInterrupted, train
 
 BEAD = next(env_id for env_id in envs.ENV_IDS if "/BeadOnRod-" in env_id)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from agents import check, evaluate, hparams, lqr
+from agents import check, evaluate, lqr
+from agents.learning import hparams
 
 USER_ID = "examples.cart_pole:Examples/CartPole-v0"
 

@@ -9,7 +9,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import envs  # noqa: F401  (registers the Lagrange ids)
-from agents.vecenv import GymnasiumVecEnv, make_sb3_vec_env, supports_native
+from agents.learning.vecenv import GymnasiumVecEnv, make_sb3_vec_env, supports_native
 
 ENV_ID = "Lagrange/BeadOnRod-v1"  # zero torque: the bead leaves the rod within ~20 steps
 

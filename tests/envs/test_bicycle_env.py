@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the Lagrange ids)
-from agents.bicycle_policy import BicycleLQRPolicy
+from agents.control.bicycle_policy import BicycleLQRPolicy
+from agents.control.linear import discretize
 from agents.evaluate import evaluate, make_agent
-from agents.linear import discretize
 from dynamics.bicycle import reduced_linearization
 from envs import bicycle
 from envs.checks import Unsupported

@@ -19,8 +19,8 @@ import sympy.physics.mechanics as me
 from gymnasium.utils.env_checker import check_env
 
 import envs
-from agents.lqr_policy import LQRPolicy
-from agents.tvlqr import PlanPolicy
+from agents.control.lqr_policy import LQRPolicy
+from agents.control.tvlqr import PlanPolicy
 from dynamics.spec import ModelSpec, Param
 from envs.checks import DeclarationError
 from envs.docs import describe
@@ -97,7 +97,7 @@ MALFORMED_AT_TASK = {
     "hyperparams typo": (_swap(hyperparams={"pp0": {}}), "Did you mean 'ppo'"),
     "lqr scale zero": (_swap(lqr=envs.LQRHints(scales={"x": 0.0})), "`lqr.scales['x']`"),
     "heuristic target": (
-        _swap(heuristic=envs.Heuristic("pd", "agents.policies.PD")),
+        _swap(heuristic=envs.Heuristic("pd", "agents.control.policies.PD")),
         "'module:Class'",
     ),
 }

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import envs
-from agents.lqr_policy import LQRPolicy
+from agents.control.lqr_policy import LQRPolicy
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import envs
-from agents.lqr_policy import LQRPolicy
+from agents.control.lqr_policy import LQRPolicy
 from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
 from envs.parameters import constant_inputs

@@ -12,8 +12,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import dynamics
-from agents import closed_loop
-from agents.policies import ZeroPolicy
+from agents.control.policies import ZeroPolicy
+from agents.scoring import closed_loop
 from examples import cart_pole, double_cart_pole, furuta
 
 EXAMPLES = {

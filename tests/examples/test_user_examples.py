@@ -16,8 +16,8 @@ from gymnasium.utils.env_checker import check_env
 
 import dynamics
 import examples
-from agents import closed_loop
-from agents.policies import ZeroPolicy
+from agents.control.policies import ZeroPolicy
+from agents.scoring import closed_loop
 from examples import gantry_crane, pendubot, planar_vtol, reaction_wheel, segway, series_elastic
 from tests.examples import kane
 

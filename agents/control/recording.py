@@ -1,0 +1,160 @@
+"""Recording an exciting input on any Lagrange env, and fitting a record, for `dynamics.identify`.
+
+The env is made with the plant's parameters (`gym.make(env_id, **plant)`) and stepped
+without its time limit; the excitation is a periodic multisine (`dynamics.excite`) in the
+env's action units, a `fraction` of the action range. An env that ends early under the
+open-loop input (a pole that falls past its failure angle) is recorded again with half the
+excitation, then under its task's LQR (designed on the env's own model) with the
+excitation added to its action: the regression uses the inputs applied, whatever produced
+them. If every try ends early, the longest record is kept when it lasts `MIN_SECONDS`.
+Each row holds the state at the start of a control period and the model inputs applied
+over it (`info["input"]`), so the record is zero-order hold, as `identify` expects. Sensor
+noise (Gaussian, std `noise = (positions, rates)`) is added to the recorded states only.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from dynamics.excite import multisine
+
+from ..common import UserError, lagrange_env, task_of
+
+MIN_SECONDS = 5.0
+"""The shortest record kept when every try ends early."""
+CLOSED_LOOP_PERIOD = 2.0
+"""Period (s) of the excitation under feedback: its harmonics from 0.5 Hz up, above what
+LQR cancels (at a 10 s period, the cart-pole's LQR cancelled the excitation to an input std
+of 2 % of the range, and the record told its masses only to +-100 %)."""
+
+
+def record(
+    env_id: str,
+    seconds: float = 20.0,
+    plant: dict | None = None,
+    noise: tuple[float, float] = (0.0, 0.0),
+    fraction: float = 0.5,
+    seed: int = 0,
+    feedback: str | None = None,
+    candidates: int = 1,
+) -> dict[str, np.ndarray]:
+    """A record {t, q, qd, u, ...} of `seconds` of excitation on `env_id` with `plant`
+    (`gym.make` keyword arguments: the model's parameters, options such as max_input).
+    feedback: None (open loop, then LQR if the env ends early), "none" or "lqr".
+    candidates: excitations (phases seeded seed, seed + 1, ...) tried first on the env's
+    nominal model, the one whose record gives the best conditioned regressor (the
+    identification's condition number) then run on the plant. Also returns the plant's
+    parameters (`plant_names`, `plant_values`), the noise and the env id, for the report."""
+    if not seconds > 0:
+        raise UserError(f"seconds must be positive, got {seconds}.")
+    if len(noise) != 2 or min(noise) < 0:
+        raise UserError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
+    if int(candidates) < 1:
+        raise UserError(f"candidates must be at least 1, got {candidates}.")
+    plant = dict(plant or {})
+    if candidates > 1:
+        seed = best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates)
+    env = lagrange_env(gym.make(env_id, **plant))
+    rec, mode = _excite(env, env_id, seconds, fraction, seed, feedback)
+    rng = np.random.default_rng(seed + 1)
+    n = env.system.n_q
+    rec["q"] = rec["q"] + noise[0] * rng.standard_normal(rec["q"].shape)
+    rec["qd"] = rec["qd"] + noise[1] * rng.standard_normal(rec["qd"].shape)
+    params = env.system.parameters
+    rec |= {
+        "plant_names": np.array(list(params)),
+        "plant_values": np.array(list(params.values())),
+        "noise": np.array(noise, dtype=float),
+        "env_id": np.array(env_id),
+        "feedback": np.array(mode),
+        "coordinates": np.array(env.system.coordinates[:n]),
+    }
+    return rec
+
+
+def _excite(env, env_id: str, seconds: float, fraction: float, seed: int, feedback):
+    """(record, mode): open loop, then half the excitation, then under LQR (or `feedback`
+    alone), until one lasts `seconds`; else the longest if it lasts MIN_SECONDS."""
+    tries = [(feedback, fraction)] if feedback else [
+        ("none", fraction), ("none", fraction / 2), ("lqr", fraction)]  # fmt: skip
+    best, mode = None, None
+    for how, share in tries:
+        rec = _run(env, seconds, share, seed, how)
+        if rec is not None and (best is None or len(rec["t"]) > len(best["t"])):
+            best, mode = rec, how
+        if rec is not None and rec["t"][-1] >= seconds - 1e-9:
+            break
+    if best is None or best["t"][-1] < MIN_SECONDS:
+        raise UserError(
+            f"{env_id} ended within {MIN_SECONDS} s under every excitation tried "
+            f"({', '.join(m for m, _ in tries)}); try a smaller --fraction."
+        )
+    return best, mode
+
+
+def model_of(env_id: str):
+    """The `dynamics.Model` an env's task runs on."""
+    from dynamics.regressor import as_model
+
+    return as_model(task_of(env_id).model)
+
+
+def fit(env_id: str, data: dict, unknown=None, friction=None, given=None):
+    """`dynamics.identify.identify` on an env's model."""
+    from dynamics.identify import identify
+
+    record = {k: data[k] for k in ("t", "q", "qd", "u") if k in data}
+    noise = tuple(data["noise"].tolist()) if "noise" in data else None
+    try:
+        return identify(model_of(env_id), record, unknown, friction, given=given, noise=noise)
+    except (TypeError, ValueError) as exc:
+        raise UserError(str(exc)) from None
+
+
+def best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates) -> int:
+    """The seed of the excitation, of `candidates` tried on the nominal model (with the
+    plant's options that are not model parameters, e.g. its motors), whose record the
+    identification finds best conditioned."""
+    names = lagrange_env(gym.make(env_id)).system.parameters
+    options = {k: v for k, v in plant.items() if k not in names}
+    env = lagrange_env(gym.make(env_id, **options))
+    scores = {}
+    for s in range(seed, seed + int(candidates)):
+        rec, _ = _excite(env, env_id, seconds, fraction, s, feedback)
+        scores[s] = fit(env_id, rec | {"noise": np.zeros(2)}).condition
+    return min(scores, key=scores.get)
+
+
+def _run(env, seconds: float, fraction: float, seed: int, mode: str):
+    """The record under `mode` ("none" or "lqr") up to the step before the env ended, or
+    None (no LQR for this task)."""
+    h = float(env.control_period)
+    steps = int(round(seconds / h))
+    n_a = env.action_space.shape[0]
+    period = min(10.0 if mode == "none" else CLOSED_LOOP_PERIOD, seconds / 2)
+    excite = multisine(np.ones(n_a), period=period, fraction=fraction, seed=seed)
+    policy = None
+    if mode == "lqr":
+        if env.task.lqr is None:
+            return None
+        from .lqr_policy import LQRPolicy
+
+        policy = LQRPolicy(env)
+    obs, _ = env.reset(seed=seed)
+    X, U = [], []
+    for k in range(steps + 1):
+        action = excite(k * h)
+        if policy is not None:
+            action = action + policy.predict(obs)[0]
+        x = env.state
+        obs, _, terminated, _, info = env.step(np.clip(action, -1, 1).astype(np.float32))
+        if terminated:
+            break
+        X.append(x)
+        U.append(info["input"])
+    if len(X) < 2:
+        return {"t": np.zeros(1)}
+    X = np.array(X)
+    n = X.shape[1] // 2
+    return {"t": np.arange(len(X)) * h, "q": X[:, :n], "qd": X[:, n:], "u": np.array(U)}

@@ -1,0 +1,105 @@
+"""Learning defaults derived from the task, not from a table keyed by env id.
+
+What a task declares sets up its learner (`derived`):
+
+- **discount**: gamma = 1 - dt / tau, with dt the control period and tau = `TAU_FRACTION`
+  of the episode (max_episode_steps x dt): the agent looks a fifth of an episode ahead
+  (an effective horizon of max_episode_steps / 5 steps), clipped to [`GAMMA_MIN`,
+  `GAMMA_MAX`]. A 10 s episode at 50 ms gives 0.975; the Furuta example's 10 s at 20 ms
+  gives 0.99.
+- **reward scale**: the task's terms declare their bounds, so one step's reward lies in
+  [sum of lows, sum of highs] (`reward_span`); the training env divides rewards by that
+  span (`reward_scale`), so one step's reward lies in an interval of width 1 and one
+  episode's return in an interval of width max_episode_steps, whatever units the user
+  wrote the reward in. (VecNormalize's running reward normalisation stays on top, as
+  before; the fixed scale makes the shaping below and the rewards commensurate.)
+- **shaping**: potential-based shaping from LQR's cost-to-go about the operating point
+  (`agents.learning.shaping`, Ng, Harada and Russell 1999), on wherever LQR can be designed:
+  F = gamma Phi(s') - Phi(s) leaves the optimal policy unchanged and gives a reward that
+  is flat near the goal a slope to follow. Not derived where the operating point is a
+  function of the state (the rolling disk's follows its heading): there the potential needs
+  the operating point and its LQR design row by row, milliseconds per step (a task or YAML
+  may still ask for it with `shaping: {lqr: W}`).
+- **actions** are already scaled to [-1, 1] from the declared input limits (the env);
+  **observations** are standardised by VecNormalize's running statistics and clipped to
+  the declared bounds by the env. Dividing by the declared bounds instead was not used:
+  they are divergence limits (40 rad/s on the Furuta example's rates, where its motion
+  stays within 1 rad/s), so that scale would squeeze the useful range to a few per cent.
+
+The layers (agents.learning.hparams.load): the algorithm's YAML `default`, then these derived
+values, then the task's own `hyperparams`, then the YAML's entry for the env id, then a
+user's file: a task's author and the user still override every derived value.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import gymnasium as gym
+
+TAU_FRACTION = 0.2
+"""The discount's time constant as a fraction of the episode."""
+GAMMA_MIN, GAMMA_MAX = 0.95, 0.998
+SHAPING_WEIGHT = 0.5
+"""The LQR potential's range as a fraction of one episode's discounted return range."""
+
+
+def episode_steps(env_id: str, task) -> int:
+    """The registry's time limit (the task's max_episode_steps where the registry has none)."""
+    steps = gym.spec(env_id).max_episode_steps
+    return int(steps if steps else task.max_episode_steps)
+
+
+def discount(control_period: float, steps: int, fraction: float = TAU_FRACTION) -> float:
+    """gamma = 1 - dt / tau with tau = `fraction` x the episode's duration, clipped."""
+    if not (control_period > 0 and steps >= 1 and fraction > 0):
+        raise ValueError(
+            f"discount needs a positive control period, steps and fraction; got "
+            f"{control_period}, {steps}, {fraction}."
+        )
+    tau = fraction * steps * control_period
+    return float(min(max(1.0 - control_period / tau, GAMMA_MIN), GAMMA_MAX))
+
+
+def reward_span(task, env_id: str | None = None) -> float:
+    """The width of one step's reward range: the sum over terms of (high - low). Bounds
+    that name a parameter or are functions of it are read from the made env (`env_id`)."""
+    if all(isinstance(b, (int, float)) for t in task.terms for b in (t.low, t.high)):
+        return float(sum(float(t.high) - float(t.low) for t in task.terms))
+    if env_id is None:
+        raise ValueError(f"Task {task.name!r} has reward bounds that name parameters.")
+    return _span_of_env(env_id, task.name)
+
+
+@functools.lru_cache(maxsize=64)
+def _span_of_env(env_id: str, name: str) -> float:
+    """The resolved bounds' span, from the made env (once per env id and task name)."""
+    env = gym.make(env_id)
+    try:
+        plant = env.unwrapped.plant
+        return float((plant.term_high - plant.term_low).sum())
+    finally:
+        env.close()
+
+
+def derived(env_id: str, task) -> dict:
+    """The hyperparameters a task's declaration implies (see the module docstring), in the
+    format of agents/learning/hyperparams/<algo>.yml; every algorithm reads the same ones."""
+    steps = episode_steps(env_id, task)
+    out = {"gamma": round(discount(task.control_period, steps), 6)}
+    span = reward_span(task, env_id)
+    if task.terms and span > 0:
+        out["reward_scale"] = float(f"{1.0 / span:.6g}")
+    if not callable(task.operating_point):
+        out["shaping"] = {"lqr": SHAPING_WEIGHT}
+    return out
+
+
+def describe(hp: dict) -> str:
+    """One line saying what the derived settings in `hp` are."""
+    parts = [f"gamma {hp['gamma']:g}"] if "gamma" in hp else []
+    if hp.get("reward_scale"):
+        parts.append(f"rewards x {hp['reward_scale']:.3g} (1 / the declared per-step span)")
+    shaping = (hp.get("shaping") or {}).get("lqr")
+    parts.append(f"LQR potential shaping {shaping:g}" if shaping else "no shaping")
+    return ", ".join(parts)

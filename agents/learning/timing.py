@@ -1,0 +1,23 @@
+"""A run's training time, kept with the run across resumed segments (agents.check)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..common import write_atomic
+
+TIME_FILE = "training_time.json"  # in the run directory: {"segments": [{from, to, seconds}]}
+
+
+def record_segment(run_dir: Path, start: int, end: int, seconds: float) -> tuple[float, int]:
+    """Add a training segment (steps start..end in `seconds`) to the run's TIME_FILE,
+    dropping segments past `start` (a fresh run, or steps a resumed checkpoint lost); return
+    the run's training seconds and the steps they cover."""
+    path = run_dir / TIME_FILE
+    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
+    segments = [s for s in segments if s["to"] <= start] if start > 0 else []
+    if end > start:
+        segments.append({"from": start, "to": end, "seconds": round(seconds, 3)})
+    write_atomic(path, json.dumps({"segments": segments}, indent=1) + "\n")
+    return sum(s["seconds"] for s in segments), sum(s["to"] - s["from"] for s in segments)

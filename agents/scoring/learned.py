@@ -1,0 +1,117 @@
+"""What `agents.check` adds about a trained agent beyond its row: the agent alone where it
+hands over to LQR, a diagnosis when it misses, and the run directory of a time budget.
+
+- **The agent's success is its own.** A run that hands over to LQR (agents.control.handover) is
+  also scored without the hand-over ("ALGO alone"), and the hand-over row's note gives the
+  share of steps LQR acted and how many starts already lay inside LQR's set (where LQR
+  alone would have done the work). The learning benchmark counts the agent alone wherever
+  a start lies inside that set.
+- **A diagnosis when learning fails**: below `SOLVED_RATE`, `agents.scoring.diagnosis.diagnose`
+  says where the episodes ended, beside LQR (and the plan, where the task declares it)
+  from the same starts.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..common import env_slug
+from ..learning.budget import SOLVED_RATE
+
+
+def warm_evaluate(evaluate, env_id: str, agent: str, episodes: int, seed: int):
+    """(stats, evaluation seconds, warm-up seconds) of `evaluate` (agents.evaluate's): one
+    episode first, untimed, so that the evaluation's time excludes one-off costs (numba
+    kernels compiled or loaded, LQR's linearisation, a model's loading)."""
+    start = time.perf_counter()
+    evaluate(env_id, agent, 1, seed)
+    warm = time.perf_counter() - start
+    start = time.perf_counter()
+    stats = evaluate(env_id, agent, episodes, seed)
+    return stats, time.perf_counter() - start, warm
+
+
+def budget_run_dir(out: Path, env_id: str, algo: str, seed: int, seconds: float, tag="") -> Path:
+    """The run directory of a wall-clock budget (beside the step budgets' ones)."""
+    return Path(out) / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{seconds:g}s{tag}"
+
+
+def solved_note(run_dir: Path, seconds: float | None) -> str:
+    """'solved after S s, N steps' (or 'not solved in B s') for a time-budget run."""
+    import json
+
+    if seconds is None:
+        return ""
+    path = Path(run_dir) / "solved.json"
+    if not path.exists():
+        return f"not solved in {seconds:g} s (best evaluation kept)"
+    solved = json.loads(path.read_text())
+    return f"solved after {solved['seconds']:.0f} s, {solved['timesteps']:,} steps"
+
+
+def resumed_note(run_dir: Path) -> str:
+    """A note when the run was trained in several segments: a resumed run restarts its
+    episodes and random streams at the checkpoint, so it is not the agent one uninterrupted
+    run of the same seed trains (measured: 512 + 512 PPO steps on the bead differ from 1024
+    by up to 0.012 in a weight), and its numbers are not repeatable as one command's."""
+    import json
+
+    from ..learning.timing import TIME_FILE
+
+    path = Path(run_dir) / TIME_FILE
+    segments = json.loads(path.read_text()).get("segments", []) if path.exists() else []
+    if len(segments) < 2:
+        return ""
+    return f"resumed ({len(segments)} segments: not one uninterrupted run's agent)"
+
+
+def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
+    """(rows, note, share, inside): for a hand-over run, the agent scored alone, the note for
+    the hand-over row, the share of steps LQR acted and how many starts lay inside LQR's
+    set (otherwise [], "", None, 0). programs:
+    agents.evaluate (its `make_agent` and `evaluate`; a library imports no program)."""
+    import gymnasium as gym
+
+    from .episodes import run_episodes
+    from .report import Row
+    from .trained import SB3Policy
+
+    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    try:
+        policy = programs.make_agent(str(model_path), venv, seed)
+        capture = getattr(policy, "capture", None)
+        if capture is None:
+            return [], "", None, 0
+        obs, _ = venv.reset(seed=seed)
+        inside = int(capture.split(obs)[3].sum())
+        run_episodes(venv, policy, obs)
+        share = policy.lqr_steps / max(policy.steps, 1)
+    finally:
+        venv.close()
+    alone = programs.evaluate(env_id, SB3Policy.load(model_path), episodes, seed)
+    name = f"{algo} alone"
+    log(f"  {name:>9}: {alone.summary()}")
+    note = (f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside "
+            "its set")  # fmt: skip
+    row = Row(env_id, name, alone, 0.0, "the trained agent without the LQR hand-over")
+    return [row], note, share, inside
+
+
+def diagnosis_lines(programs, env_id, agent_path, rate, episodes, seed, plans, log) -> list[str]:
+    """The diagnosis of a trained agent below `SOLVED_RATE` (else nothing); programs:
+    agents.evaluate (its `make_agent`)."""
+    from .diagnosis import diagnose
+
+    if rate >= SOLVED_RATE or not np.isfinite(rate):
+        return []
+    compare = ("lqr", "plan") if plans else ("lqr",)
+    try:
+        lines = diagnose(programs.make_agent, env_id, str(agent_path), episodes, seed, compare)
+    except Exception as exc:  # the diagnosis must never lose the report
+        lines = [f"diagnosis not available: {' '.join(str(exc).split())[:160]}"]
+    for line in lines:
+        log(f"    {line}")
+    return [f"{env_id}: {line}" for line in lines]
