@@ -197,7 +197,8 @@ def main(argv=None) -> int:
                           args.fraction, args.seed, args.feedback, args.candidates)  # fmt: skip
             with atomic_path(args.record, suffix=".npz") as tmp:
                 np.savez(tmp, **data)
-            print(f"recorded {len(data['t'])} samples ({data['feedback']}) to {args.record}")
+            how = "open loop" if str(data["feedback"]) == "none" else f"under {data['feedback']}"
+            print(f"recorded {len(data['t'])} samples ({how}) to {args.record}")
             return 0
         if args.out is None:
             raise UserError("--data needs --out DIR.")
