@@ -3,6 +3,7 @@ gym.make; and docs/identification.md's worked example as written."""
 
 from __future__ import annotations
 
+import importlib
 import re
 from pathlib import Path
 
@@ -67,9 +68,16 @@ def test_the_worked_example_runs_as_written(tmp_path, monkeypatch, capsys):
     page = Path(__file__).resolve().parents[2] / "docs" / "identification.md"
     text = page.read_text(encoding="utf-8")
     monkeypatch.chdir(tmp_path)
-    for command in re.findall(r"```bash\n(.*?)```", text, re.S):
-        argv = command.replace("\\\n", " ").split()[3:]  # after python -m agents.identify
-        assert identify.main(argv) == 0
+    for block in re.findall(r"```bash\n(.*?)```", text, re.S):
+        for command in block.replace("\\\n", " ").splitlines():
+            words = command.split("#")[0].split()
+            if not words:
+                continue
+            assert words[:3] == ["python", "-m", words[2]] and words[2].startswith("agents.")
+            if words[2] == "agents.identify":  # record and fit, as written
+                assert identify.main(words[3:]) == 0
+            else:  # the other programs that take the result: their arguments as written
+                importlib.import_module(words[2]).build_parser().parse_args(words[3:])
     for block in re.findall(r"```python\n(.*?)```", text, re.S):
         exec(compile(block, str(page), "exec"), {})
     out = capsys.readouterr().out

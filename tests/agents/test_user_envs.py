@@ -47,7 +47,8 @@ def test_a_user_system_gets_default_hyperparameters():
 def test_main_job_on_a_user_system_end_to_end(tmp_path, capsys):
     argv = [USER_ID, "--timesteps", "1024", "--episodes", "4", "--out", str(tmp_path)]
     assert check.main(argv + ["--no-progress"]) == 0
-    report = (tmp_path / "Examples-CartPole-v0" / "results.md").read_text()  # its own report
+    # its own report, named by the budget asked for
+    report = (tmp_path / "Examples-CartPole-v0_1024steps" / "results.md").read_text()
     for agent in ("random", "zero", "lqr", "ppo"):
         assert f"| Examples/CartPole-v0 | {agent} |" in report
 

@@ -201,7 +201,10 @@ def test_read_only_cache_compiles_cold_with_one_warning(tmp_path, monkeypatch):
         a = dynamics.get_model("bead_on_rotating_rod").compile()
         b = dynamics.get_model("particle_cartesian").compile()
     assert len([w for w in caught if "not writable" in str(w.message)]) == 1
-    assert not list(root.iterdir())
+    # nothing written: at most the private, empty __pycache__ made before numba would make
+    # it with the process umask (a real read-only directory refuses that too)
+    assert [p.name for p in root.iterdir()] in ([], ["__pycache__"])
+    assert not list(root.rglob("*.*"))
     assert np.isfinite(_derivative(a)) and b.n_q == 3
 
 
