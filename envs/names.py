@@ -21,6 +21,7 @@ import hashlib
 import inspect
 import keyword
 import re
+import weakref
 from collections import namedtuple
 from collections.abc import Mapping
 
@@ -98,11 +99,29 @@ def label(fn) -> str:
 def named_operating_point(fn) -> bool:
     """Whether an operating-point function takes the named form `(x, goal, p[, system])`,
     told by its parameter names (see above)."""
+    return _operating_point_form(fn)[0]
+
+
+def _operating_point_form(fn) -> tuple[bool, bool]:
+    """(named form, takes the system): read from the signature once per function (policies
+    ask for the operating point at every step)."""
+    try:
+        return _FORMS[fn]
+    except (KeyError, TypeError):  # not seen yet, or unhashable (read every time)
+        pass
     try:
         params = list(inspect.signature(fn).parameters)
     except (TypeError, ValueError):  # no signature to read: the former form
-        return False
-    return params[:3] == ["x", "goal", "p"]
+        params = []
+    form = (params[:3] == ["x", "goal", "p"], len(params) > 3)
+    try:
+        _FORMS[fn] = form
+    except TypeError:
+        pass
+    return form
+
+
+_FORMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def state_rows(values, names, n: int, where: str) -> np.ndarray:
@@ -131,14 +150,15 @@ def state_rows(values, names, n: int, where: str) -> np.ndarray:
 def operating_state(fn, plant, g: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The rows (N, 2n) an operating-point function gives for goals g and states x, in
     either form; the named one reads read-only copies."""
-    if not named_operating_point(fn):
+    named, wants_system = _operating_point_form(fn)
+    if not named:
         return np.asarray(fn(g, x, plant.system), dtype=np.float64).reshape(len(g), -1)
     rows = [np.array(a, dtype=np.float64) for a in (x, g)]
     for a in rows:
         a.setflags(write=False)
     x_rec = columns(record_type("Rows", plant.state_names), rows[0])
     goal = columns(record_type("Goal", plant.goal_names), rows[1])
-    extra = (plant.system,) if len(inspect.signature(fn).parameters) > 3 else ()
+    extra = (plant.system,) if wants_system else ()
     out = fn(x_rec, goal, plant.p, *extra)
     where = f"Task {plant.task.name!r}: `operating_point` function {label(fn)}"
     return state_rows(out, plant.state_names, len(g), where)
