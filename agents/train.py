@@ -132,27 +132,12 @@ def train(
     directory (before anything is written), and TrainingInterrupted after saving when
     SIGINT or SIGTERM stopped the run."""
     env_id = check_env_id(env_id)
-    hp = load_hyperparams(algo, env_id, hyperparams)
-    if budget is not None and timesteps is None:  # the clock or success stops it
-        timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
-    total = int(timesteps if timesteps is not None else hp["n_timesteps"])
-    n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
-    for name, value in (("timesteps", total), ("n_envs", n_envs), ("eval_episodes", eval_episodes)):
-        if value < 1:
-            raise UserError(f"{name} must be a positive integer, got {value}.")
-    if vectorization not in VECTORIZATIONS:
-        raise UserError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
+    hp, total, n_envs = _checked_arguments(
+        env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
+    )
     set_torch_threads(threads)
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
-    if randomize is None and resume:
-        randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
-    elif resume:  # another setting would rewrite the record of what the run trained on
-        check_resume_randomize(run_dir, randomize)
-    if resume:  # other --params would be recorded as if the run had always used them
-        params.check_resume(run_dir, env_id)
-    if randomize is not None:
-        hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
-    env_options = randomization.env_kwargs(env_id, hp.get("randomize"))  # checked before writing
+    env_options = _randomization(run_dir, env_id, hp, randomize, resume)
     with exclusive(run_dir):
         remove_stale_temporaries(run_dir)
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite)
@@ -168,8 +153,7 @@ def train(
             "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
-        config.update(params.record(env_id, env_options))  # randomize's ranges, --params
-        write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
+        _write_config(run_dir, config, env_id, env_options)
         options = dict(
             eval_freq=eval_freq or budgets.budget_eval_freq(total, hp["n_timesteps"], budget),
             eval_episodes=eval_episodes,
@@ -180,6 +164,45 @@ def train(
             budget=budget,
         )
         return _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **options)
+
+
+def _checked_arguments(
+    env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
+) -> tuple[dict, int, int]:
+    """The run's hyperparameters, total timesteps and n_envs; UserError for a bad argument.
+    A budget without a step count runs to the step cap with constant schedules."""
+    hp = load_hyperparams(algo, env_id, hyperparams)
+    if budget is not None and timesteps is None:  # the clock or success stops it
+        timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
+    total = int(timesteps if timesteps is not None else hp["n_timesteps"])
+    n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
+    for name, value in (("timesteps", total), ("n_envs", n_envs), ("eval_episodes", eval_episodes)):
+        if value < 1:
+            raise UserError(f"{name} must be a positive integer, got {value}.")
+    if vectorization not in VECTORIZATIONS:
+        raise UserError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
+    return hp, total, n_envs
+
+
+def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool) -> dict:
+    """Put the run's `randomize` into `hp` (a resumed run without one keeps its record's;
+    with one, it must match the record, as must --params) and return the env options it
+    gives, checked before anything is written."""
+    if randomize is None and resume:
+        randomize = (read_config(run_dir).get("hyperparams") or {}).get("randomize")
+    elif resume:  # another setting would rewrite the record of what the run trained on
+        check_resume_randomize(run_dir, randomize)
+    if resume:  # other --params would be recorded as if the run had always used them
+        params.check_resume(run_dir, env_id)
+    if randomize is not None:
+        hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
+    return randomization.env_kwargs(env_id, hp.get("randomize"))
+
+
+def _write_config(run_dir: Path, config: dict, env_id: str, env_options: dict) -> None:
+    """config.yml: `config` with randomize's ranges and --params added, written atomically."""
+    config.update(params.record(env_id, env_options))
+    write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
 
 
 def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **o) -> TrainResult:
