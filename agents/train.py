@@ -21,13 +21,11 @@ import argparse
 import shlex
 import signal
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import ProgressBarCallback
 
 from . import params
 from .common import (
@@ -37,6 +35,7 @@ from .common import (
     non_negative_int,
     positive_int,
     set_torch_threads,
+    task_of,
     trained_line,
     write_atomic,
 )
@@ -44,15 +43,13 @@ from .learning import budget as budgets
 from .learning import randomization
 from .learning.callbacks import (
     AtomicCheckpoint,
-    EvaluationStopped,
     GracefulStop,
-    LogProgress,
-    ScheduledEval,
-    _StopFirst,
     build_or_load,
+    learn,
     save_final,
 )
 from .learning.curves import CurveLogger
+from .learning.defaults import episode_steps
 from .learning.fingerprint import task_fingerprint
 from .learning.hparams import ALGOS, check_entries, load_hyperparams
 from .learning.rundir import (
@@ -217,11 +214,14 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
-        clock = budgets.Clock(o["budget"] or float("inf"))
+        per_env = -(-o["eval_episodes"] // eval_envs)  # the episodes an eval env runs
+        horizon = episode_steps(env_id, task_of(env_id))
+        clock = budgets.Clock(o["budget"] or float("inf"), per_env * horizon, eval_envs)
         solved = budgets.SolvedStop(run_dir, clock) if o["budget"] else None
-        evaluation = ScheduledEval(
+        evaluation = budgets.BudgetedEval(  # on the step schedule; in time for a budget
             eval_env,
             o["eval_freq"],
+            clock,
             stop,
             n_eval_episodes=o["eval_episodes"],
             deterministic=True,
@@ -231,13 +231,13 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         if found is not None:
             evaluation.restore(run_dir / "evaluations.npz", found[0])
-        start = time.perf_counter()
+        clock.begin()  # a budget covers from here to the kept model (agents.learning.budget)
         learning = model.num_timesteps < total  # else a finished run, resumed
         with stop:  # from here to the last save a signal stops and saves instead of killing
             if learning:
                 callbacks = [stop, clock, curves, evaluation, checkpoint]
                 label = f"{algo.upper()} on {env_id}" if o["progress"] else ""
-                _learn(model, total, callbacks, fresh=found is None, progress=label)
+                learn(model, total, callbacks, fresh=found is None, progress=label)
             if stop.signum is not None:  # keep what the weights have learnt from, no more
                 model.num_timesteps = stop.consistent_timesteps
                 curves.truncate(model.num_timesteps)
@@ -247,7 +247,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
             if solved is not None and stop.signum is None:  # the best evaluated, kept
                 budgets.keep_best(evaluation, solved, run_dir)
             curves.close()
-        wall = time.perf_counter() - start
+        wall = clock.elapsed()
     finally:
         train_env.close()
         eval_env.close()
@@ -267,27 +267,6 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
     if stop.signum is not None:
         raise TrainingInterrupted(result, stop.signum)
     return result
-
-
-def _learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progress: str):
-    # our own progress bar, so that it is closed (and its refresh thread stopped) however
-    # learn() ends; SB3's (progress_bar=True) is closed only when training ends normally.
-    # Where stderr is not a terminal (a log file), a line every LogProgress.every seconds
-    # (`progress` is the lines' label; empty: no progress shown).
-    bar = None
-    if progress:
-        bar = ProgressBarCallback() if sys.stderr.isatty() else LogProgress(progress)
-    try:
-        model.learn(
-            total - model.num_timesteps,
-            callback=_StopFirst(callbacks + ([bar] if bar else [])),
-            reset_num_timesteps=fresh,
-        )
-    except EvaluationStopped:  # a signal during an evaluation: saved as after any stop
-        pass
-    finally:
-        if bar is not None and hasattr(bar, "pbar"):
-            bar.pbar.close()
 
 
 # ---- command line ------------------------------------------------------------------------

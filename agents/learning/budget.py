@@ -33,14 +33,21 @@ import time
 from pathlib import Path
 
 import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from ..common import atomic_path, write_atomic
+from .callbacks import ScheduledEval
 
 SOLVED_RATE = 0.8
 SOLVED_TIMES = 2
 BUDGET_STEPS_CAP = 10**9
 """The step count a budget-only run is given (it stops on time or success first)."""
+RECORDS_S = 0.75
+"""What an evaluation's records and saves (the curves plotted, the best model saved) are
+taken to cost until one is measured; the saves at the end are counted as two of them."""
+WARMUP_STEPS = 10
+"""Training steps whose times the mean step time leaves out (the first calls of torch and
+the env take several times a step's time)."""
 _UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}
 
 
@@ -81,25 +88,145 @@ def constant_schedules(hp: dict) -> dict:
 
 
 class Clock(BaseCallback):
-    """Stops training when `seconds` of wall-clock time have passed since it started."""
+    """Stops training early enough that the run ends within `seconds` of `begin()`: at each
+    step it keeps back what still has to come after the stop (`after_s`: the final
+    evaluation and the saves) and the time to its next check (a step, and the update phase
+    where one comes first). Evaluations report their durations to it (`BudgetedEval`) and
+    ask it whether they may start (`may_evaluate`) and whether training may go on after
+    them (`may_go_on`).
 
-    def __init__(self, seconds: float):
+    eval_steps: the most vector steps one evaluation can take (its episodes per eval env x
+    the time limit): a measured evaluation's time per step is scaled to it, since the next
+    one may run its episodes longer. eval_envs: the envs an evaluation steps at once."""
+
+    def __init__(self, seconds: float, eval_steps: int = 0, eval_envs: int = 1):
         super().__init__()
         self.seconds = float(seconds)
-        self.start = time.perf_counter()
+        self.eval_steps, self.eval_envs = int(eval_steps), int(eval_envs)
+        self.start: float | None = None
         self.ran_out = False
+        self.eval_step_s: float | None = None  # an evaluation's seconds per vector step
+        self.records_s = RECORDS_S  # the last evaluation's records and saves took
+        self.update_s = 0.0  # the longest update phase (gradient steps between rollouts)
+        self.updates = 0  # update phases so far: the weights change only there
+        self._aside = 0.0  # seconds in evaluations and updates, not in training steps
+        self._stepping = [0.0, 0]  # seconds between checks (less the above), and how many
+        self._check: tuple[float, float] | None = None  # the last check's time and _aside
+        self._rollout_end: float | None = None
+
+    def begin(self) -> float:
+        """Start the clock (the start of training); returns the start's perf_counter."""
+        self.start = time.perf_counter()
+        return self.start
 
     def _on_training_start(self) -> None:
-        self.start = time.perf_counter()
+        if self.start is None:
+            self.begin()
 
     def elapsed(self) -> float:
-        return time.perf_counter() - self.start
+        return 0.0 if self.start is None else time.perf_counter() - self.start
+
+    def left(self) -> float:
+        return self.seconds - self.elapsed()
+
+    def step_s(self) -> float:
+        """Mean seconds per training vector step (evaluations and updates left out)."""
+        seconds, count = self._stepping
+        return seconds / (count - WARMUP_STEPS) if count > WARMUP_STEPS else 0.0
+
+    def evaluation_s(self) -> float:
+        """What an evaluation will take: the measured seconds per step (until one is
+        measured, a training step's: both step the envs and run the policy once) times the
+        most steps it can take, plus its records and saves."""
+        per_step = self.eval_step_s if self.eval_step_s is not None else self.step_s()
+        return per_step * self.eval_steps + self.records_s
+
+    def saves_s(self) -> float:
+        """The saves after the stop (checkpoint, model, the best model published, the
+        curves written): about two evaluations' records."""
+        return 2.0 * self.records_s
+
+    def after_s(self) -> float:
+        """What follows a stop at a model not evaluated yet: its evaluation, the saves."""
+        return self.evaluation_s() + self.saves_s()
+
+    def may_evaluate(self) -> bool:
+        """Whether an evaluation started now ends in time for the saves after it (training
+        stops right after it where it leaves no room for another; see `may_go_on`)."""
+        return self.left() > self.evaluation_s() + self.saves_s()
+
+    def may_go_on(self) -> bool:
+        """Whether training may go on to its next check and still end within the budget."""
+        if self.left() > self.after_s() + self._next_check_s():
+            return True
+        self.ran_out = True
+        return False
+
+    def evaluated(self, seconds: float, records_s: float, lengths) -> None:
+        """An evaluation took `seconds`, `records_s` of them in its records and saves, and
+        ran episodes of `lengths` steps on `eval_envs` envs at once."""
+        self._aside += seconds
+        self.records_s = records_s  # the first is slower (it imports matplotlib)
+        # at least its longest episode, and its steps shared evenly: a lower bound on the
+        # vector steps it took, so its time per step is not underestimated
+        steps = max(max(lengths, default=1), math.ceil(sum(lengths) / self.eval_envs), 1)
+        self.eval_step_s = max(seconds - records_s, 0.0) / steps
+
+    def _on_rollout_end(self) -> None:
+        self._rollout_end = time.perf_counter()
+
+    def _on_rollout_start(self) -> None:
+        if self._rollout_end is not None:
+            update = time.perf_counter() - self._rollout_end
+            self.update_s = max(self.update_s, update)
+            self._aside += update
+            self.updates += 1
+
+    def _next_check_s(self) -> float:
+        """Seconds to the next check: a step, and before it an update if this step ends
+        the rollout (PPO says so; off-policy learners may update after any step)."""
+        n, of = self.locals.get("n_steps"), self.locals.get("n_rollout_steps")
+        ends_rollout = n is None or of is None or n + 1 >= of
+        return self.step_s() + (self.update_s if ends_rollout else 0.0)
 
     def _on_step(self) -> bool:
-        if self.elapsed() >= self.seconds:
-            self.ran_out = True
-            return False
-        return True
+        now = time.perf_counter()
+        if self._check is not None:  # from the second check on: a step's time
+            if self._stepping[1] >= WARMUP_STEPS:
+                self._stepping[0] += max(now - self._check[0] - (self._aside - self._check[1]), 0)
+            self._stepping[1] += 1
+        self._check = (now, self._aside)
+        return self.may_go_on()
+
+
+class BudgetedEval(ScheduledEval):
+    """ScheduledEval that reports its durations to `clock`, is not started where it would
+    not end in time (training stops there instead, and the final evaluation, `keep_best`,
+    evaluates the same model), and stops training after it where the time left would not
+    cover training on and another evaluation (the model kept is then the one evaluated)."""
+
+    def __init__(self, eval_env, every: int, clock: Clock, stop=None, **kw):
+        super().__init__(eval_env, every, stop, **kw)
+        self.clock = clock
+        self.of_updates = -1  # the clock's update count at the last evaluation
+
+    def _on_step(self) -> bool:
+        if not self.due():
+            return True
+        if not self.clock.may_evaluate():
+            self.clock.ran_out = True
+            return False  # the final evaluation (keep_best) evaluates this model
+        # with too little time left for another, training stops at the model evaluated
+        return self.timed() and self.clock.may_go_on()
+
+    def timed(self) -> bool:
+        """Evaluate now, and tell the clock how long it took."""
+        start, self.of_updates = time.perf_counter(), self.clock.updates
+        go_on = EvalCallback._on_step(self)
+        records = getattr(self.callback, "seconds", 0.0)
+        lengths = self.evaluations_length[-1] if self.evaluations_length else ()
+        self.clock.evaluated(time.perf_counter() - start, records, lengths)
+        return go_on
 
 
 class AfterEvals(BaseCallback):
@@ -109,6 +236,7 @@ class AfterEvals(BaseCallback):
     def __init__(self, *callbacks: BaseCallback):
         super().__init__()
         self.callbacks = callbacks
+        self.seconds = 0.0  # the last call's
 
     def _init_callback(self) -> None:
         for c in self.callbacks:
@@ -116,7 +244,10 @@ class AfterEvals(BaseCallback):
             c.init_callback(self.model)
 
     def _on_step(self) -> bool:
-        return all([c.on_step() for c in self.callbacks])
+        start = time.perf_counter()
+        go_on = all([c.on_step() for c in self.callbacks])
+        self.seconds = time.perf_counter() - start  # read by BudgetedEval
+        return go_on
 
 
 class SolvedStop(BaseCallback):
@@ -174,16 +305,19 @@ class SolvedStop(BaseCallback):
         write_atomic(best / "best.json", json.dumps(record, indent=1) + "\n")
 
 
-def keep_best(evaluation, solved: SolvedStop, run_dir: Path) -> None:
+def keep_best(evaluation: BudgetedEval, solved: SolvedStop, run_dir: Path) -> None:
     """At the end of a budget run: evaluate the final model unless the last evaluation was
-    of it (the last steps may have learnt the most; this evaluation comes after the clock),
-    then make the best evaluated model the run's model.zip."""
-    from stable_baselines3.common.callbacks import EvalCallback
-
-    model = evaluation.model
-    if solved.solved is None and evaluation.evaluations_timesteps[-1:] != [model.num_timesteps]:
-        evaluation.num_timesteps = model.num_timesteps
-        EvalCallback._on_step(evaluation)  # records it and offers it to `solved` as best
+    of it (the last steps may have learnt the most; the clock kept time for it), then make
+    the best evaluated model the run's model.zip. Where the evaluation would no longer end
+    within the budget (it took longer than measured before) and an evaluated model exists,
+    it is not started: that one is kept."""
+    model, clock = evaluation.model, evaluation.clock
+    fits = solved.best is None or clock.left() >= clock.evaluation_s() + clock.records_s
+    evaluated = evaluation.evaluations_timesteps[-1:] == [model.num_timesteps]
+    if solved.solved is None and not evaluated and evaluation.of_updates != clock.updates:
+        if fits:
+            evaluation.num_timesteps = model.num_timesteps
+            evaluation.timed()  # records it and offers it to `solved` as best
     if solved.best is not None:
         publish_best(run_dir)
 

@@ -19,6 +19,7 @@ from stable_baselines3.common.callbacks import (
     CallbackList,
     CheckpointCallback,
     EvalCallback,
+    ProgressBarCallback,
 )
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.save_util import save_to_pkl
@@ -180,11 +181,13 @@ class ScheduledEval(EvalCallback):
     def _on_training_start(self) -> None:
         self._seen = self.num_timesteps
 
-    def _on_step(self) -> bool:
+    def due(self) -> bool:
+        """Whether the run's timestep count passed a multiple of `every` since the last call."""
         before, self._seen = self._seen, self.num_timesteps
-        if not _crossed(before, self.num_timesteps, self.every):
-            return True
-        return super()._on_step()
+        return _crossed(before, self.num_timesteps, self.every)
+
+    def _on_step(self) -> bool:
+        return super()._on_step() if self.due() else True
 
 
 class LogProgress(BaseCallback):
@@ -293,6 +296,29 @@ class _StopFirst(CallbackList):
 
     def _on_step(self) -> bool:
         return all(callback.on_step() for callback in self.callbacks)
+
+
+def learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progress: str):
+    """model.learn up to `total` steps with `callbacks` (stopping at the first that asks),
+    showing progress under the label `progress`."""
+    # our own progress bar, so that it is closed (and its refresh thread stopped) however
+    # learn() ends; SB3's (progress_bar=True) is closed only when training ends normally.
+    # Where stderr is not a terminal (a log file), a line every LogProgress.every seconds
+    # (`progress` is the lines' label; empty: no progress shown).
+    bar = None
+    if progress:
+        bar = ProgressBarCallback() if sys.stderr.isatty() else LogProgress(progress)
+    try:
+        model.learn(
+            total - model.num_timesteps,
+            callback=_StopFirst(callbacks + ([bar] if bar else [])),
+            reset_num_timesteps=fresh,
+        )
+    except EvaluationStopped:  # a signal during an evaluation: saved as after any stop
+        pass
+    finally:
+        if bar is not None and hasattr(bar, "pbar"):
+            bar.pbar.close()
 
 
 # ---- the model: new, or read back from a checkpoint; saved -------------------------------
