@@ -231,6 +231,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         if found is not None:
             evaluation.restore(run_dir / "evaluations.npz", found[0])
+        if o["budget"]:
+            budgets.load_plotting()
         clock.begin()  # a budget covers from here to the kept model (agents.learning.budget)
         learning = model.num_timesteps < total  # else a finished run, resumed
         with stop:  # from here to the last save a signal stops and saves instead of killing

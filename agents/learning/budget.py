@@ -305,6 +305,16 @@ class SolvedStop(BaseCallback):
         write_atomic(best / "best.json", json.dumps(record, indent=1) + "\n")
 
 
+def load_plotting() -> None:
+    """Import matplotlib (a second or more under load, once per process) before the clock
+    starts: the first evaluation's records would otherwise take several times the later
+    ones', and the clock, which keeps back what the last records took, would stop early."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+
 def keep_best(evaluation: BudgetedEval, solved: SolvedStop, run_dir: Path) -> None:
     """At the end of a budget run: evaluate the final model unless the last evaluation was
     of it (the last steps may have learnt the most; the clock kept time for it), then make
