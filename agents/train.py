@@ -12,7 +12,8 @@ its normalisation statistics and a checkpoint before exiting with 128 + the sign
 earlier run is only trained into with `--resume` (continue it) or `--overwrite` (start
 afresh); only one process trains into a directory at a time (agents.learning.rundir).
 The pieces, in agents.learning: hparams (hyperparameters to SB3's arguments), vecenv (the
-envs), rundir (the run directory), callbacks (checkpoints, evaluations, the stop).
+envs), rundir (the run directory), callbacks (checkpoints, evaluations, the stop, the
+learning loop), budget (the wall-clock budget).
 """
 
 from __future__ import annotations
@@ -231,8 +232,6 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         if found is not None:
             evaluation.restore(run_dir / "evaluations.npz", found[0])
-        if o["budget"]:
-            budgets.load_plotting()
         clock.begin()  # a budget covers from here to the kept model (agents.learning.budget)
         learning = model.num_timesteps < total  # else a finished run, resumed
         with stop:  # from here to the last save a signal stops and saves instead of killing

@@ -7,9 +7,24 @@ never sees, every `budget_eval_freq` steps) reaches at least 80 % success at two
 evaluations in a row. Every evaluation
 that beats the best so far (success rate, then mean return) saves the model, its
 normalisation statistics and config.yml into `best/` of the run directory, each file
-atomically; at the end the final model is evaluated too (unless it just was), the run's
-model.zip is the best one (`best/` keeps it too), and
-`solved.json` records the seconds and env steps to success.
+atomically; at the end the final model is evaluated too (unless its weights just were),
+the run's model.zip is the best one (`best/` keeps it too), and `solved.json` records the
+seconds and env steps to success.
+
+What the budget covers: the run from the start of training (the envs and the model made,
+matplotlib imported) to the kept model: the training steps and updates, the evaluations,
+the final evaluation, the checkpoint and every save. The run's `wall_s` (the report's
+training time) is that span, and it ends within the budget: at each step the `Clock` keeps
+back what must still follow a stop, each part measured in the run itself (the final
+evaluation at its longest, the last evaluation's time per step scaled to episodes that all
+run to the time limit, plus its records; the saves, two evaluations' records; the time to
+its next check, the update phase where one comes first). An evaluation that would not end
+in time is not started (training stops, and the final evaluation evaluates that model);
+one after which there is no time for another ends training at the model it evaluated. What
+can still go past is an end slower than measured (the load rising): 0.0-0.6 s on the
+shared 2-core machine (docs/learning.md). The estimate is on the safe side, so a run may
+end up to about one evaluation early where episodes end before the time limit; a budget
+shorter than the end itself (a few seconds) cannot be met.
 
 Without `--timesteps` a budget run has no step count to decay a schedule over, so
 "lin_X" schedules are read as the constant X; with `--timesteps` too, the steps cap the
@@ -115,7 +130,10 @@ class Clock(BaseCallback):
         self._rollout_end: float | None = None
 
     def begin(self) -> float:
-        """Start the clock (the start of training); returns the start's perf_counter."""
+        """Start the clock (the start of training); returns the start's perf_counter. With a
+        budget, matplotlib is imported first (`load_plotting`)."""
+        if math.isfinite(self.seconds):
+            load_plotting()
         self.start = time.perf_counter()
         return self.start
 
