@@ -60,9 +60,10 @@ BUDGET_STEPS_CAP = 10**9
 RECORDS_S = 0.75
 """What an evaluation's records and saves (the curves plotted, the best model saved) are
 taken to cost until one is measured; the saves at the end are counted as two of them."""
-WARMUP_STEPS = 10
-"""Training steps whose times the mean step time leaves out (the first calls of torch and
-the env take several times a step's time)."""
+WARMUP_STEPS, MEAN_OF_STEPS = 10, 100
+"""The first training steps, whose times the mean step time leaves out (the first calls of
+torch and the env take several times a step's time), and the steps after them it needs
+before it is used (a few steps preempted under load would make it several times a step's)."""
 _UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}
 
 
@@ -97,8 +98,7 @@ def budget_eval_freq(total: int, declared: int, budget: float | None) -> int:
 def constant_schedules(hp: dict) -> dict:
     """`hp` with every 'lin_X' schedule read as the constant X (see the module docstring)."""
     return {
-        k: float(v[4:]) if isinstance(v, str) and v.startswith("lin_") else v
-        for k, v in hp.items()
+        k: float(v[4:]) if isinstance(v, str) and v.startswith("lin_") else v for k, v in hp.items()
     }
 
 
@@ -150,7 +150,7 @@ class Clock(BaseCallback):
     def step_s(self) -> float:
         """Mean seconds per training vector step (evaluations and updates left out)."""
         seconds, count = self._stepping
-        return seconds / (count - WARMUP_STEPS) if count > WARMUP_STEPS else 0.0
+        return seconds / (count - WARMUP_STEPS) if count >= WARMUP_STEPS + MEAN_OF_STEPS else 0.0
 
     def evaluation_s(self) -> float:
         """What an evaluation will take: the measured seconds per step (until one is
