@@ -17,6 +17,7 @@ from stable_baselines3 import PPO, SAC
 import envs
 from agents import train as train_mod
 from agents.common import UserError, atomic_path
+from agents.learning import budget
 from agents.learning.callbacks import load_replay_buffer, save_replay_buffer
 from agents.learning.rundir import is_stale_temporary, latest_checkpoint
 from agents.train import TrainingInterrupted, train
@@ -207,14 +208,14 @@ def test_a_signal_during_an_evaluation_ends_it_at_the_next_step_and_saves(
     """SB3 looks at callbacks only between evaluations; the evaluation polls the stop."""
     calls = []
 
-    class SignalInEval(train_mod.ScheduledEval):
+    class SignalInEval(budget.BudgetedEval):  # the evaluation train() makes
         def _log_success_callback(self, locals_, globals_):
             calls.append(self.num_timesteps)
             if len(calls) == 3:
                 signal.raise_signal(signal.SIGTERM)
             super()._log_success_callback(locals_, globals_)
 
-    monkeypatch.setattr(train_mod, "ScheduledEval", SignalInEval)
+    monkeypatch.setattr(budget, "BudgetedEval", SignalInEval)
     previous = signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         with pytest.raises(TrainingInterrupted) as stopped:
