@@ -22,7 +22,7 @@ its next check, the update phase where one comes first). An evaluation that woul
 in time is not started (training stops, and the final evaluation evaluates that model);
 one after which there is no time for another ends training at the model it evaluated. What
 can still go past is an end slower than measured (the load rising); on a loaded 2-core
-machine the runs measured ended 0.4-1.1 s before their budgets (docs/learning.md). The estimate is on the safe side, so a run may
+machine the runs measured ended 0.05-3 s before their budgets (docs/learning.md). The estimate is on the safe side, so a run may
 end up to about one evaluation early where episodes end before the time limit; a budget
 shorter than the end itself (a few seconds) cannot be met.
 

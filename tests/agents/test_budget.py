@@ -71,7 +71,7 @@ BUDGET_MARGIN_S = 1.0
 """What a budget run may exceed its budget by. The clock keeps back the times it measured in
 the same run (an evaluation's time per step scaled to the time limit, the saves, the longest
 update phase); only an end slower than measured (the load rising) goes past. On a 2-core
-machine under a concurrent benchmark (load average 6-9) budget runs ended 0.4-1.1 s before
+machine under a concurrent benchmark (load average 6-11) budget runs ended 0.05-3 s before
 their budgets and the saves at the end took 0.2-0.8 s: a second is more than the end's
 variation there, and far less than the 2-4 s the runs went past before."""
 
