@@ -22,16 +22,17 @@ its next check, the update phase where one comes first). An evaluation that woul
 in time is not started (training stops, and the final evaluation evaluates that model);
 one after which there is no time for another ends training at the model it evaluated. What
 can still go past is an end slower than measured (the load rising); on a loaded 2-core
-machine the runs measured ended 0.05-3 s before their budgets (docs/learning.md). The estimate is on the safe side, so a run may
-end up to about one evaluation early where episodes end before the time limit; a budget
-shorter than the end itself (a few seconds) cannot be met.
+machine the runs measured ended 0.05-3 s before their budgets (docs/learning.md). The
+estimate is on the safe side, so a run may end up to about one evaluation early where
+episodes end before the time limit; a budget shorter than the end itself (a few seconds)
+cannot be met.
 
 Without `--timesteps` a budget run has no step count to decay a schedule over, so
 "lin_X" schedules are read as the constant X; with `--timesteps` too, the steps cap the
 run and the schedules decay over them as usual.
 
 Repeatability: a step budget (`--timesteps`) with the same seed trains the same agent on
-the same machine (tests/agents/test_repeatable.py); a wall-clock budget cannot, because
+the same machine (tests/agents/test_budget.py); a wall-clock budget cannot, because
 where it stops depends on the machine's load. The stop at success is on a step schedule
 (evaluations every `--eval-freq` steps), so two runs that both reach it stop at the same
 step with the same agent.
