@@ -4,16 +4,22 @@ shaping from LQR's cost-to-go (Ng, Harada and Russell 1999).
 `TaskRewardVecEnv` wraps the training VecEnv (inside VecNormalize, outside the episode
 monitor, so the logged returns stay the env's own and the registered reward is untouched):
 
-    r' = scale r + gamma Phi(s') - Phi(s),    Phi(s) = -W V(s) / (V(s) + V_start)
+    r' = scale r + gamma Phi(s') - Phi(s),    Phi(s) = -W d / (d + 1),  d = sqrt(V(s) / V_start)
 
 V(s) = dx' P dx is LQR's cost-to-go about the operating point (or goal) in s, V_start the
-median of V over the task's start distribution, and W = weight x (1 - gamma^H) / (1 - gamma),
-the range of one episode's discounted return when one step's reward spans 1 (what `scale`
-makes it, agents.learning.defaults). Phi runs from 0 at the operating point to -W far from
-it, and is W/2 below zero at a typical start. A terminal state (failure, divergence) has
-Phi = 0 and a truncated episode's last state its own Phi, as the theorem asks; shaping then
-changes each episode's discounted return by gamma^T Phi(s_T) - Phi(s_0) and leaves the
-optimal policy unchanged, while a reward that is flat near the goal gets a slope towards it.
+median of V over the task's start distribution, so d is a distance from the operating point
+in units of a typical start's, and W = weight x (1 - gamma^H) / (1 - gamma), the range of
+one episode's discounted return when one step's reward spans 1 (what `scale` makes it,
+agents.learning.defaults). Phi runs from 0 at the operating point to -W far from it, and
+is W/2 below zero at a typical start. Near the operating point Phi falls linearly with the
+distance (slope W per start distance), not with its square as V does: a quadratic
+potential is as flat near the goal as the quadratic rewards users write, and the slope near
+the goal is what settles an agent inside a small success set (on the gantry crane example,
+seed 0: 100 % after 30k steps with this form, 20 % after 1M steps with -W V / (V + V_start)).
+A terminal state (failure, divergence) has Phi = 0 and a truncated episode's last state its
+own Phi, as the theorem asks; shaping then changes each episode's discounted return by
+gamma^T Phi(s_T) - Phi(s_0) and leaves the optimal policy unchanged, while a reward that is
+flat near the goal gets a slope towards it.
 """
 
 from __future__ import annotations
@@ -34,7 +40,8 @@ START_SAMPLES = 64
 
 
 class LQRPotential:
-    """Phi(obs) = -W V / (V + V_start) for batches of observations of `env_id`."""
+    """Phi(obs) = -W d / (d + 1), d = sqrt(V / V_start), for batches of observations of
+    `env_id` (see the module docstring)."""
 
     def __init__(self, env_id: str, weight: float, gamma: float, horizon: int):
         env = gym.make(env_id)
@@ -77,7 +84,8 @@ class LQRPotential:
         v = self.cost(np.asarray(obs, dtype=np.float64).reshape(len(obs), -1))
         v = np.where(np.isfinite(v), v, np.inf)
         with np.errstate(invalid="ignore"):
-            ratio = np.where(np.isinf(v), 1.0, v / (v + self.v_start))
+            d = np.sqrt(np.maximum(v, 0.0) / self.v_start)  # V >= 0 up to round-off
+            ratio = np.where(np.isinf(v), 1.0, d / (d + 1.0))
         return -self.amplitude * ratio
 
 

@@ -95,6 +95,21 @@ def test_potential_is_zero_at_the_operating_point_and_half_down_at_a_start():
     assert np.median(phi(np.stack(starts))) == pytest.approx(-phi.amplitude / 2, rel=1e-3)
 
 
+def test_potential_falls_linearly_near_the_operating_point():
+    # a quadratic potential (V itself) would be as flat at the goal as the users' quadratic
+    # rewards: Phi must fall with the distance, so doubling a small offset doubles Phi
+    # (a ratio of 4 would be the quadratic's). 1e-4 rad is far inside the Furuta's 0.05 rad
+    # success box; the d / (d + 1) saturation bends the ratio to 2 (1 + d) / (1 + 2 d), about
+    # 2 (1 - d), with d ~ 2e-3 here (the offset over a typical start's distance, ~0.05 rad).
+    phi = LQRPotential(FURUTA, 0.5, 0.99, 500)
+
+    def at(theta):
+        return phi(np.array([[1.0, 0.0, np.cos(theta), np.sin(theta), 0.0, 0.0]]))[0]
+
+    assert at(2e-4) / at(1e-4) == pytest.approx(2.0, rel=1e-2)
+    assert at(1e-4) < 0.0
+
+
 def test_flat_reward_probe_finds_the_furutas_flat_angle_and_not_the_arms():
     furuta = success_edges(FURUTA)
     assert furuta.inside
