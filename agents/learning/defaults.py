@@ -16,10 +16,11 @@ What a task declares sets up its learner (`derived`):
 - **shaping**: potential-based shaping from LQR's cost-to-go about the operating point
   (`agents.learning.shaping`, Ng, Harada and Russell 1999), on wherever LQR can be designed:
   F = gamma Phi(s') - Phi(s) leaves the optimal policy unchanged and gives a reward that
-  is flat near the goal a slope to follow. Not derived where the operating point is a
-  function of the state (the rolling disk's follows its heading): there the potential needs
-  the operating point and its LQR design row by row, milliseconds per step (a task or YAML
-  may still ask for it with `shaping: {lqr: W}`).
+  is flat near the goal a slope to follow. Where the operating point is a function of the
+  state (the Segway example rides along its heading) the potential designs LQR row by row:
+  PPO then steps about a third slower (the Segway: 2,450 against 3,800 env-steps/s here),
+  and learns more per step (seed 0, 10 minutes: 55 % of 20 episodes shaped, 10 %
+  without), so it is derived there too.
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
@@ -90,8 +91,7 @@ def derived(env_id: str, task) -> dict:
     span = reward_span(task, env_id)
     if task.terms and span > 0:
         out["reward_scale"] = float(f"{1.0 / span:.6g}")
-    if not callable(task.operating_point):
-        out["shaping"] = {"lqr": SHAPING_WEIGHT}
+    out["shaping"] = {"lqr": SHAPING_WEIGHT}
     return out
 
 

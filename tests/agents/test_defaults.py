@@ -142,3 +142,12 @@ def test_every_algorithm_builds_with_the_derived_settings():
     for algo in hparams.ALGOS:
         hp = hparams.load(algo, FURUTA)
         assert hparams.algo_kwargs(algo, hp, 1)["gamma"] == pytest.approx(0.99)
+
+
+def test_shaping_is_derived_where_the_operating_point_follows_the_state():
+    # the Segway example's operating point rides along its heading (a function of the
+    # state): the potential designs LQR row by row there, and is derived as elsewhere
+    import examples.segway as segway
+
+    assert callable(segway.TASK.operating_point)
+    assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5}
