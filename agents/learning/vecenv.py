@@ -169,10 +169,10 @@ def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
     from .defaults import episode_steps
     from .shaping import TaskRewardVecEnv, lqr_potential
 
-    if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
-        warn_if_flat(env_id)
     scale = float(hp.get("reward_scale", 1.0))
     weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
+    if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
+        warn_if_flat(env_id, shaped=bool(weight))
     if scale == 1.0 and not weight:
         return venv
     gamma = float(hp.get("gamma", 0.99))

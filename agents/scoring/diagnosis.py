@@ -104,10 +104,10 @@ def flat_components(edges: Edges, rates: bool = False) -> list[str]:
     ]
 
 
-def flat_reward_warning(env_id: str) -> str | None:
+def flat_reward_warning(env_id: str, shaped: bool = True) -> str | None:
     """A message when the task's reward is flat inside the tolerance of its success set
     (see the module docstring), else None; never raises (a probe that cannot run says so
-    nothing)."""
+    nothing). shaped: whether the training adds the LQR shaping (the remedy it names)."""
     try:
         edges = success_edges(env_id)
     except Exception:  # a task whose operating point cannot be probed: nothing to say
@@ -123,13 +123,19 @@ def flat_reward_warning(env_id: str) -> str | None:
         f"{', '.join(parts)}: one step just outside the set pays less than {FLAT:g} of a "
         f"step's reward range ({edges.span:.3g}) less than one at the operating point, so "
         "the reward hardly tells an agent to enter the set (agents may settle just outside "
-        "it); the LQR shaping of training (agents.learning.shaping) gives it a slope, or add a "
-        "term that grows towards the goal."
+        "it); "
+        + (
+            "the LQR shaping of training (agents.learning.shaping) gives it a slope, or add a "
+            "term that grows towards the goal."
+            if shaped
+            else "this training has no LQR shaping (the task's own settings leave it out): add "
+            "a term that grows towards the goal, or ask for shaping ({lqr: 0.5})."
+        )
     )
 
 
-def warn_if_flat(env_id: str) -> None:
-    message = flat_reward_warning(env_id)
+def warn_if_flat(env_id: str, shaped: bool = True) -> None:
+    message = flat_reward_warning(env_id, shaped)
     if message:
         warnings.warn(message, UserWarning, stacklevel=2)
 

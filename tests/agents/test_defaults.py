@@ -151,3 +151,12 @@ def test_shaping_is_derived_where_the_operating_point_follows_the_state():
 
     assert callable(segway.TASK.operating_point)
     assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5}
+
+
+def test_flat_reward_warning_names_the_remedy_the_training_has():
+    from agents.scoring.diagnosis import flat_reward_warning
+
+    shaped = flat_reward_warning(FURUTA, shaped=True)
+    plain = flat_reward_warning(FURUTA, shaped=False)
+    assert "gives it a slope" in shaped and "no LQR shaping" not in shaped
+    assert "no LQR shaping" in plain and "gives it a slope" not in plain
