@@ -243,18 +243,18 @@ def bind_fused(rt, actions: np.ndarray):
 _COMPILING: set[threading.Thread] = set()
 
 
-def fused_for(rt, actions: np.ndarray, key: tuple):
-    """Runtime `rt`'s fused step bound for arrays like `actions` (`key`: their dtype and
-    flags), or None while it compiles in the background: where the rows step one at a time
-    (`Runtime._row_by_row`) and numba's cache does not have the step, it compiles in a
-    thread of its own, and until it is bound `Runtime.step` takes the step of separate
-    calls. Those give the same results bit for bit and run only code that the fused step
-    links, compiled here first (the model's `erk_row`; the task's functions and the
-    runtime's kernels are already): a first call of a kernel while the thread compiles
-    would wait for numba's compiler lock, that is for the whole step. So a new model's
-    first step waits for its integrator, not for the fused step (about 2 s of compilation,
-    mostly LLVM re-optimising what it links). A thread that fails leaves its error to the
-    next step, which binds the step itself."""
+def fused_for(rt, actions: np.ndarray):
+    """Runtime `rt`'s fused step bound for arrays like `actions`, or None while it compiles
+    in the background: where the rows step one at a time (`Runtime._row_by_row`) and
+    numba's cache does not have the step, it compiles in a thread of its own, and until it
+    is bound `Runtime.step` takes the step of separate calls. Those give the same results
+    bit for bit and run only code that the fused step links, compiled here first (the
+    model's `erk_row`; the task's functions and the runtime's kernels are already): a
+    first call of a kernel while the thread compiles would wait for numba's compiler lock,
+    that is for the whole step. So a new model's first step waits for its integrator, not
+    for the fused step (about 2 s of compilation, mostly LLVM re-optimising what it
+    links). A thread that fails leaves its error to the next step, which binds the step
+    itself."""
     pending = rt._fused_pending
     if pending is not None and pending.is_alive():
         return None
@@ -282,7 +282,7 @@ def _bind_quietly(rt, actions: np.ndarray) -> None:
 
 
 def wait_for_background() -> None:
-    """Wait until every fused step compiling in the background is bound."""
+    """Wait until every fused step compiling in the background is bound (or has failed)."""
     for thread in list(_COMPILING):
         thread.join()
 

@@ -19,8 +19,10 @@ The task's own functions are compiled with numba when numba can type them, and c
 plain Python otherwise (a warning says so once per function; `envs.compiled`). When all
 of them compile and one thread steps the rows, the whole step is one compiled call
 (`envs.fused`), with the same results bit for bit: the per-row arrays are views of a few
-flat buffers for that. The model's kernels read the store's `model_params`, the task's
-functions its `task_params`; nothing reaches back for a parameter.
+flat buffers for that. A new model's fused step for rows that step one at a time compiles
+in a thread while separate calls take the first steps (`envs.compiled.fused_for`). The
+model's kernels read the store's `model_params`, the task's functions its `task_params`;
+nothing reaches back for a parameter.
 
 The env's own runtime (`perturbed=True`) applies the plant's perturbations (`envs.perturb`):
 before a step, the inputs applied and the pushes' generalised forces replace the commanded
@@ -276,7 +278,7 @@ class Runtime:
         f = actions.flags
         key = (actions.dtype, f.c_contiguous, f.writeable, f.aligned)
         step = self._fused_bound.get(key)
-        return compiled.fused_for(self, actions, key) if step is None else step
+        return compiled.fused_for(self, actions) if step is None else step
 
     def _erk_row_args(self, r: int) -> tuple:
         """The model's `erk_row` arguments that advance row r into `_X_next`."""
