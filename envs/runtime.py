@@ -57,6 +57,7 @@ class Runtime:
     _BOOLS = ("terminated", "success", "diverged", "_failed")
 
     def __init__(self, plant: Plant, n: int, perturbed: bool = False):
+        compiled.wait_for_background()  # see envs.contract.make_runtime
         self.plant = plant
         self.system = s = plant.system
         self.n = n
