@@ -6,12 +6,16 @@
 Each measurement is one new Python process with a fresh, empty model cache
 (``LAGRANGE_GYM_CACHE``) and the model's module copied to a fresh folder under a name of its
 own, as a user's new model would be: its derivation, its generated kernels and its task
-functions are all compiled for the first time. What numba compiles once per machine (this
+functions are all compiled for the first time (numba caches a task function's machine code
+beside its module, in that fresh folder). What numba compiles once per machine (this
 project's own model-independent kernels, cached beside their modules) is compiled before
 the first round by one unmeasured run per tree. The process reports the seconds of
 `gymnasium.make` (including importing the model's module, which derives nothing), `reset`,
-the first `step`, and the CPU seconds of the three together (on a loaded machine the wall
-clock waits for other processes; CPU time does not).
+the first `step`, the CPU seconds of the three together (on a loaded machine the wall
+clock waits for other processes; CPU time does not; a thread compiling in the background
+counts), and the seconds (wall and CPU) until the env's fused step is bound (`fused`,
+`fused_cpu`: a tree that compiles it in the background, `envs.compiled.fused_for`, steps
+by separate calls until then, with the same results).
 
 `--baseline PATH` measures another checkout of this project (for example the commit before
 a change, in a second `git worktree`) in the same run: the two trees alternate within each
@@ -19,19 +23,26 @@ round, so a shared machine's load falls on both, and the table gives the medians
 ratio of this tree to the baseline. The models are the user-style examples in `examples/`
 (the same source file for both trees: this tree's).
 
-Where the cart-pole's cold seconds went (CPU seconds of each numba compilation, from its
-compile events, on a busy two-core machine), before this benchmark's round and after:
+Where the cart-pole's cold seconds went (CPU seconds of each numba compilation, its own
+time without what it compiles inside, from numba's compile events, on a busy two-core
+machine), two rounds ago, at the start of this round and after it:
 
-| compiled | before | after |
-|---|---|---|
-| `accelerations_batch` (the checks when the env is made) | 1.9 | 0 (run as Python) |
-| the five task functions, for the sample and again in the fused step | 2.1 | 1.1 (once) |
-| numpy's broadcasting error text in the fused step (`Q[:, k] = ...`) | 1.9 | 0 (row loops) |
-| `vsin`, `vcos`, `solve`, finiteness scans (model-independent) | 1.5 | 0 (once per machine) |
-| `erk_batch`, a level of calls that re-optimises the integrator | 0.6 | 0 (not called) |
-| `erk_rows`, `erk_row`, `derivative_lanes` | 1.9 | 2.0 |
-| the fused step itself (LLVM re-optimises all it links) | 2.8 | 2.4 |
-| make, reset and first step, in all | 13.0 | 6.7 |
+| compiled | two rounds ago | before | after |
+|---|---|---|---|
+| `accelerations_batch` (the checks when the env is made) | 1.9 | 0 (run as Python) | 0 |
+| the five task functions | 2.1 | 1.0 (once) | 1.0 |
+| numpy's broadcasting error text in the fused step (`Q[:, k] = ...`) | 1.9 | 0 (row loops) | 0 |
+| `vsin`, `vcos`, `solve`, finiteness scans (model-independent) | 1.5 | 0 (once per machine) | 0 |
+| `energy_terms`, `energy_batch` (the energy in `info`) | | 0.2 | 0.2 |
+| `erk_batch`, a level of calls that re-optimises the integrator | 0.6 | 0 (not called) | 0 |
+| `erk_rows` (rows in vector lanes; a single env has one) | 1.9 (and the next) | 1.0 | 0 |
+| `erk_row`, `derivative_lanes` | | 0.9 | 0.9 |
+| the fused step itself (LLVM re-optimises all it links) | 2.8 | 2.3 | 2.2, in the background |
+| make, reset and first step, in all (CPU s) | 13.0 | 6.0 | 3.0 |
+
+The rest of `make` (about 0.5 s) is the derivation, code generation and the imports. What
+the first step still waits for is the model's integrator (`erk_row` and the derivative it
+inlines): the step of separate calls runs it while the fused step compiles.
 """
 
 from __future__ import annotations
@@ -48,7 +59,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = {"cart_pole": "Examples/CartPole-v0", "furuta": "Examples/Furuta-v0"}
-PHASES = ("make", "reset", "step", "total", "cpu")
+PHASES = ("make", "reset", "step", "total", "cpu", "fused", "fused_cpu")
 
 CHILD = """
 import json, os, sys, time
@@ -66,8 +77,15 @@ env.reset(seed=0)
 t3 = time.perf_counter()
 env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
 t4, c4 = time.perf_counter(), time.process_time()
+try:  # the fused step, where it compiles in the background
+    from envs.compiled import wait_for_background
+except ImportError:  # a tree that compiles it before the first step returns
+    wait_for_background = None
+if wait_for_background is not None:
+    wait_for_background()
+t5, c5 = time.perf_counter(), time.process_time()
 print(json.dumps({"import": t_import, "make": t2 - t1, "reset": t3 - t2, "step": t4 - t3,
-                  "total": t4 - t1, "cpu": c4 - c1}))
+                  "total": t4 - t1, "cpu": c4 - c1, "fused": t5 - t1, "fused_cpu": c5 - c1}))
 """
 """The measured process: run with the tree as its working directory (so that it imports
 that tree's packages), the model's folder, its module name and its env id as arguments."""
@@ -120,7 +138,7 @@ def table(results: dict[tuple[str, str], list[dict]], trees: list[str]) -> str:
     first tree to the second where there are two."""
     head = ["model", "cache"]
     for tree in trees:
-        head += [f"{tree}: {k} (s)" for k in ("make", "reset", "step", "total", "cpu")]
+        head += [f"{tree}: {k} (s)" for k in PHASES]
     if len(trees) == 2:
         head += ["total ratio", "cpu ratio"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -128,7 +146,7 @@ def table(results: dict[tuple[str, str], list[dict]], trees: list[str]) -> str:
         row = [model, kind]
         medians = [summary(results[model, kind, tree]) for tree in trees]
         for m in medians:
-            row += [f"{m[k]:.2f}" for k in ("make", "reset", "step", "total", "cpu")]
+            row += [f"{m[k]:.2f}" for k in PHASES]
         if len(trees) == 2:
             row += [f"{medians[0][k] / medians[1][k]:.2f}" for k in ("total", "cpu")]
         lines.append("| " + " | ".join(row) + " |")

@@ -4,12 +4,14 @@ machine code for the runtime's own arrays (`bind`)."""
 
 from __future__ import annotations
 
+import os
+import threading
 import warnings
 
 import numpy as np
 
 from dynamics.cache import keep_numba_cache_true
-from dynamics.system import BLOCK, method_tableau
+from dynamics.system import BLOCK, _kernel_compiled, method_tableau
 
 from . import checks, fused, names
 from .observation import observe
@@ -58,6 +60,20 @@ def compile_task_function(fn, args):
         )
     _COMPILED[key] = compiled
     return compiled
+
+
+def _entry(fn, args):
+    """The machine code of compiled `fn` for the types the fused step calls it with
+    (`_as_fused`), called without numba's type dispatch (see `bind`), or `fn` itself.
+    The step of separate calls then runs the very code the fused step links, whatever the
+    layout of its columns (a single row's are contiguous): nothing more to compile."""
+    overloads = getattr(fn, "overloads", None)
+    if overloads is None:
+        return fn
+    import numba
+
+    compiled = overloads.get(tuple(_as_fused(numba.typeof(a)) for a in args))
+    return fn if compiled is None else compiled.entry_point
 
 
 def _as_fused(argument_type):
@@ -138,7 +154,7 @@ def compile_functions(rt) -> dict:
         rt._task_params,
     )
     jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
-    calls = {r: names.caller(jitted[f"_{r}"], *rt._types) for r in functions}
+    calls = {r: names.caller(_entry(jitted[f"_{r}"], sample), *rt._types) for r in functions}
     term_calls = [calls[r] for r in functions if r.startswith("term_")]
     rt._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
     rt._success = calls["success"]
@@ -195,13 +211,16 @@ def compile_fused(rt, jitted: dict) -> None:
         return
     module = rt.system.kernel_module
     rows = rt.parameters.per_row  # each row's own parameters: the kernels that read them so
+    row_by_row = rt._row_by_row  # then erk_rows is neither compiled nor linked into the step
+    integrator = {"_erk_row": module.erk_row} if row_by_row else {"_erk": module.erk_rows}
     functions = {
         "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
-        "_erk": module.erk_rows, "_outputs": module.outputs_batch,
+        **integrator, "_outputs": module.outputs_batch,
         **jitted,
     }  # fmt: skip
     plan_, rt._fused_C, rt._fused_K = plan(rt)
     plan_["perturbed"], plan_["pushed"], plan_["rows"] = rt.perturber is not None, rt._pushed, rows
+    plan_["row_by_row"] = row_by_row
     types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
     rt._fused = fused.build(plan_, functions, types)
 
@@ -209,12 +228,64 @@ def compile_fused(rt, jitted: dict) -> None:
 def bind_fused(rt, actions: np.ndarray):
     """Runtime `rt`'s fused step's machine code for arrays like `actions` (compiled or
     loaded from numba's cache on first use), bound as `bind` does."""
-    f = actions.flags
     args = (actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
             rt._task_params, -1)  # fmt: skip
     if rt.perturber is not None:  # samples of the applied inputs and the forces
         args += (rt.perturber.applied, rt.perturber.W)
     rt._fused.compile(tuple(rt._fused.typeof_pyval(a) for a in args))
     step = bind(rt._fused, args)
+    f = actions.flags
     rt._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
     return step
+
+
+# ---- a new step compiled in the background -----------------------------------------------
+_COMPILING: set[threading.Thread] = set()
+
+
+def fused_for(rt, actions: np.ndarray):
+    """Runtime `rt`'s fused step bound for arrays like `actions`, or None while it compiles
+    in the background: where the rows step one at a time (`Runtime._row_by_row`) and
+    numba's cache does not have the step, it compiles in a thread of its own, and until it
+    is bound `Runtime.step` takes the step of separate calls. Those give the same results
+    bit for bit and run only code that the fused step links, compiled here first (the
+    model's `erk_row`; the task's functions and the runtime's kernels are already): a
+    first call of a kernel while the thread compiles would wait for numba's compiler lock,
+    that is for the whole step. So a new model's first step waits for its integrator, not
+    for the fused step (about 2 s of compilation, mostly LLVM re-optimising what it
+    links). A thread that fails leaves its error to the next step, which binds the step
+    itself."""
+    pending = rt._fused_pending
+    if pending is not None and pending.is_alive():
+        return None
+    if pending is not None or not rt._row_by_row or _kernel_compiled(rt._fused):
+        return bind_fused(rt, actions)
+    plant = rt.plant
+    rt._erk_row = warm(rt._erk_row, *rt._erk_row_args(0))
+    warm(apply_actions, actions, plant.input_mid, plant.input_half, plant.actuated, rt.A, rt.U)
+    if len(plant.output_index):  # the model's outputs, which the task functions read
+        rt.rows()
+    thread = threading.Thread(target=_bind_quietly, args=(rt, actions), name="fused step")
+    rt._fused_pending = thread
+    _COMPILING.add(thread)
+    thread.start()
+    return None
+
+
+def _bind_quietly(rt, actions: np.ndarray) -> None:
+    try:
+        bind_fused(rt, actions)
+    except Exception:  # noqa: S110 (the next step binds it again, and raises the error)
+        pass
+    finally:
+        _COMPILING.discard(threading.current_thread())
+
+
+def wait_for_background() -> None:
+    """Wait until every fused step compiling in the background is bound (or has failed)."""
+    for thread in list(_COMPILING):
+        thread.join()
+
+
+# a forked child would inherit numba's compiler lock held by a thread it does not have
+os.register_at_fork(before=wait_for_background)

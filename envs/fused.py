@@ -228,10 +228,19 @@ def source(plan: dict) -> str:
     # gives the kernels the vector's shape); pushes add the generalised forces W
     params = "model_params[0], model_params" if plan.get("rows") else "model_params, None"
     forces = "W" if plan.get("pushed") else "None"
+    if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
+        one = "model_params[r]" if plan.get("rows") else "model_params"
+        lines += [
+            "    for r in range(n):  # the model's erk_row, one row at a time",
+            f"        _erk_row(T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r)",
+        ]
+    else:
+        lines += [
+            "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
+            f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
+            "             min(n, lo + block))",
+        ]
     lines += [
-        "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
-        f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
-        "             min(n, lo + block))",
         "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
         "                            steps_left)",
     ]

@@ -19,8 +19,10 @@ The task's own functions are compiled with numba when numba can type them, and c
 plain Python otherwise (a warning says so once per function; `envs.compiled`). When all
 of them compile and one thread steps the rows, the whole step is one compiled call
 (`envs.fused`), with the same results bit for bit: the per-row arrays are views of a few
-flat buffers for that. The model's kernels read the store's `model_params`, the task's
-functions its `task_params`; nothing reaches back for a parameter.
+flat buffers for that. A new model's fused step for rows that step one at a time compiles
+in a thread while separate calls take the first steps (`envs.compiled.fused_for`). The
+model's kernels read the store's `model_params`, the task's functions its `task_params`;
+nothing reaches back for a parameter.
 
 The env's own runtime (`perturbed=True`) applies the plant's perturbations (`envs.perturb`):
 before a step, the inputs applied and the pushes' generalised forces replace the commanded
@@ -31,6 +33,8 @@ its noise. Other runtimes of the plant (`env.simulator(n)`) step the nominal pla
 from __future__ import annotations
 
 import numpy as np
+
+from dynamics.system import method_tableau
 
 from . import compiled
 from .observation import observe
@@ -53,6 +57,7 @@ class Runtime:
     _BOOLS = ("terminated", "success", "diverged", "_failed")
 
     def __init__(self, plant: Plant, n: int, perturbed: bool = False):
+        compiled.wait_for_background()  # see envs.contract.make_runtime
         self.plant = plant
         self.system = s = plant.system
         self.n = n
@@ -131,6 +136,11 @@ class Runtime:
         module = self.system.kernel_module
         self._energy = warm(module.energy_batch, self.T, self.X, self._p_shared, self._P,
                             self._E)  # fmt: skip
+        # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
+        # its `erk_rows` would: the same operations), in the fused step and without it
+        self._row_by_row = self.n < module.LANES_FROM and not self._pushed
+        self._erk_row, self._tableau = module.erk_row, method_tableau(self.integrator)
+        self._fused_pending = None  # the thread compiling the fused step, if one does
         compiled.compile_fused(self, jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
@@ -138,7 +148,8 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_model_params", "_task_params", "_p_shared", "_P"):  # fmt: skip
+                  "_E0", "_model_params", "_task_params", "_p_shared", "_P", "_erk_row",
+                  "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -238,11 +249,8 @@ class Runtime:
             if not np.isfinite(actions).all():
                 raise NonFiniteActions("actions contain NaN or inf")
             perturbed = self.perturber.before_step(actions, self.T, self.X, self._model_params)
-        if self._fused is not None:
-            f = actions.flags
-            step = self._fused_bound.get((actions.dtype, f.c_contiguous, f.writeable, f.aligned))
-            if step is None:
-                step = compiled.bind_fused(self, actions)
+        step = None if self._fused is None else self._fused_step(actions)
+        if step is not None:
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
                         self._fused_K, self._model_params, self._task_params,
                         -1 if horizon is None else horizon, *perturbed)  # fmt: skip
@@ -265,10 +273,28 @@ class Runtime:
             self.perturber.observe(self._obs64, self.O)
         return bool(diverged) or bool(bad)
 
+    def _fused_step(self, actions: np.ndarray):
+        """The fused step's machine code for arrays like `actions`, or None while it
+        compiles in the background (`envs.compiled.fused_for`)."""
+        f = actions.flags
+        key = (actions.dtype, f.c_contiguous, f.writeable, f.aligned)
+        step = self._fused_bound.get(key)
+        return compiled.fused_for(self, actions) if step is None else step
+
+    def _erk_row_args(self, r: int) -> tuple:
+        """The model's `erk_row` arguments that advance row r into `_X_next`."""
+        P = self._model_params
+        p = P[r] if self.parameters.per_row else P
+        h = self.control_period / self.substeps
+        return (self.T, self.X, self.U, p, h, self.substeps, *self._tableau, self._X_next, r)
+
     def _integrate(self, perturbed) -> None:
         """The step of separate calls: X_next from X under U, with the pushes' forces."""
         s, args = self.system, (self.control_period, self.substeps, self._X_next, self.integrator)
-        if self._pushed:
+        if self._row_by_row:
+            for r in range(self.n):
+                self._erk_row(*self._erk_row_args(r))
+        elif self._pushed:
             s.step_pushed_unchecked(self.T, self.X, self.U, self._model_params, perturbed[1], *args)
         elif self.parameters.per_row:
             s.step_rows_unchecked(self.T, self.X, self.U, self._model_params, *args,

@@ -196,3 +196,31 @@ def test_the_generated_step_names_parameters_and_terms_as_the_book_does():
     assert "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params," in text
     assert "terms = F_[" in text
     assert not re.search(r"\b[pqQ]\b", text)
+
+
+def test_a_new_fused_step_compiles_in_the_background_and_steps_the_same(monkeypatch):
+    """A single env whose fused step numba's cache does not have steps by separate calls
+    while the step compiles in a thread, then by the step: the same numbers bit for bit as
+    an env that had its step from the first (the trajectory crosses the hand-over)."""
+    from envs import compiled
+
+    def run(env, steps=40):
+        rng = np.random.default_rng(4)
+        out = [env.reset(seed=2)[0]]
+        for _ in range(steps):
+            obs, r, term, _, info = env.step(rng.uniform(-1, 1, 1).astype(np.float32))
+            out += [obs, [r, term, info["energy"]], info["state"]]
+            if term:
+                out.append(env.reset()[0])
+        return np.concatenate([np.ravel(np.asarray(o, np.float64)) for o in out])
+
+    expected = run(gym.make("Examples/CartPole-v0"))
+    monkeypatch.setattr(compiled, "_kernel_compiled", lambda kernel: False)  # not cached
+    env = gym.make("Examples/CartPole-v0")
+    rt = env.unwrapped._rt
+    got = run(env)  # its first step starts the thread and steps by separate calls
+    assert rt._fused_pending is not None
+    assert np.array_equal(got, expected)
+    compiled.wait_for_background()
+    assert list(rt._fused_bound) == [(np.dtype(np.float32), True, True, True)]
+    assert np.array_equal(run(env), expected)
