@@ -134,7 +134,7 @@ def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
             out[lo + b, i] = x[i, b]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def as_columns(R, width, lo, m):
     """Rows lo..lo + m of R (N, width) as the columns of a new (width, m) array; a
     (width, 0) array where R is None (numba prunes the branch)."""
@@ -147,7 +147,7 @@ def as_columns(R, width, lo, m):
     return cols
 
 
-@njit(cache=True, error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def erk_step(t, x, u, p, pc, wc, P, W, h, a, w, c, xs, k, ts):
     """One step of size h of the tableau (a, w, c) on the block's columns x (2n, m) at
     times t, in place: stage s's derivative k[s] at t + c_s h and x + h sum_j a_sj k[j],
@@ -166,7 +166,7 @@ def erk_step(t, x, u, p, pc, wc, P, W, h, a, w, c, xs, k, ts):
         t[b] += h
 
 
-@njit(cache=True, error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def weighted_sum(x, k, f, count, h, acc, dest):
     """dest <- x + h (sum over j < count of f_j k[j]), column by column, summed in acc
     first (dest may be acc or x); stages of weight zero are skipped."""
@@ -182,7 +182,7 @@ def weighted_sum(x, k, f, count, h, acc, dest):
             dest[i, b] = x[i, b] + h * acc[i, b]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(inline="always", error_model="numpy")
 def lanes_derivative(t, x, u, p, pc, wc, P, W, d):
     """d <- the derivative of the columns x: `derivative_lanes` with p (P None),
     `derivative_lanes_p` with each column's own parameters pc, or `derivative_lanes_w`
