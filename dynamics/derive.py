@@ -97,105 +97,144 @@ def _multipliers(spec: ModelSpec) -> tuple:
     return tuple(sp.Symbol(f"lambda{r + 1}") for r in range(len(spec.constraints)))
 
 
-def derive(spec: ModelSpec) -> Derived:
-    """Form Lagrange's equations of `spec`: M, F, B, b, gamma, T, V, the power and the
-    outputs in plain symbols (see the module docstring)."""
-    q = list(spec.coordinates)
-    n, m = len(q), len(spec.constraints)
-    prescribed = list(spec.prescribed)
-    Q, Qd, Qdd = (sp.symbols(f"{s}0:{n}") for s in ("q", "qd", "qdd"))
-    P = [sp.Dummy(f"{c.name}") for c in prescribed]
-    Pd = [sp.Dummy(f"{c.name}_d") for c in prescribed]
-    Pdd = [sp.Dummy(f"{c.name}_dd") for c in prescribed]
-    lam = sp.symbols(f"lam0:{m}")
-    plain = {t: sp.Symbol("t")}
-    plain |= {u: sp.Symbol(f"u{j}") for j, u in enumerate(spec.inputs)}
-    plain |= {s: sp.Symbol(f"p{k}") for k, s in enumerate(spec.parameters)}
-    plain |= dict(zip(_multipliers(spec), lam))  # outputs may use the multipliers
-    T_ = plain[t]
+class _Lagrangian:
+    """A spec's Lagrangian L = T - V, given forces and momenta p_s = dL/dqdot_s in plain
+    symbols, the forms the code is derived from: q0.. (Q), qd0.. (Qd), qdd0.. (Qdd) for the
+    coordinates, Dummies (P, Pd, Pdd) for the prescribed ones, which `on_schedule` replaces
+    by their motion p = f(t) and its rates; coordinates, rates, forces and momenta list the
+    prescribed coordinates after the free ones."""
 
-    # dynamicsymbols -> plain symbols, the highest derivative first (msubs leaves the
-    # coordinate inside a Derivative alone, so the order only matters for clarity)
-    to_plain = {}
-    for level, names in ((2, (Qdd, Pdd)), (1, (Qd, Pd)), (0, (Q, P))):
-        for coords, syms in zip((q, prescribed), names):
-            to_plain |= {c.diff(t, level) if level else c: s for c, s in zip(coords, syms)}
+    def __init__(self, spec: ModelSpec):
+        q, prescribed = list(spec.coordinates), list(spec.prescribed)
+        n, m = len(q), len(spec.constraints)
+        self.spec = spec
+        self.Q, self.Qd, self.Qdd = (sp.symbols(f"{s}0:{n}") for s in ("q", "qd", "qdd"))
+        self.P = [sp.Dummy(f"{c.name}") for c in prescribed]
+        self.Pd = [sp.Dummy(f"{c.name}_d") for c in prescribed]
+        self.Pdd = [sp.Dummy(f"{c.name}_dd") for c in prescribed]
+        self.lam = sp.symbols(f"lam0:{m}")
+        plain = {t: sp.Symbol("t")}
+        plain |= {u: sp.Symbol(f"u{j}") for j, u in enumerate(spec.inputs)}
+        plain |= {s: sp.Symbol(f"p{k}") for k, s in enumerate(spec.parameters)}
+        plain |= dict(zip(_multipliers(spec), self.lam))  # outputs may use the multipliers
+        self.plain, self.t = plain, plain[t]
+        # dynamicsymbols -> plain symbols, the highest derivative first (msubs leaves the
+        # coordinate inside a Derivative alone, so the order only matters for clarity)
+        self.to_plain = {}
+        levels = ((2, (self.Qdd, self.Pdd)), (1, (self.Qd, self.Pd)), (0, (self.Q, self.P)))
+        for level, names in levels:
+            for coords, syms in zip((q, prescribed), names):
+                self.to_plain |= {c.diff(t, level) if level else c: s for c, s in zip(coords, syms)}
+        self.motion = {}  # the prescribed motion p = f(t), in plain symbols
+        for c, s, sd, sdd in zip(prescribed, self.P, self.Pd, self.Pdd):
+            f = self.convert(spec.prescribed[c])
+            fd = _diff(f, self.t)
+            self.motion |= {s: f, sd: fd, sdd: _diff(fd, self.t)}
+        self.coords, self.rates = list(self.Q) + self.P, list(self.Qd) + self.Pd
+        self.accels = list(self.Qdd) + self.Pdd
+        self.L = self.convert(spec.kinetic) - self.convert(spec.potential)
+        self.forces = [self.convert(spec.forces.get(c, 0)) for c in q + prescribed]
+        self.momenta = [_compact(_diff(self.L, r)) for r in self.rates]
 
-    def convert(expr):
-        return me.msubs(sp.sympify(expr), to_plain).xreplace(plain)
+    def convert(self, expr) -> sp.Expr:
+        """`expr` (in dynamicsymbols and the spec's symbols) in plain symbols."""
+        return me.msubs(sp.sympify(expr), self.to_plain).xreplace(self.plain)
 
-    # the prescribed motion p = f(t), in plain symbols, and its substitution
-    motion = {}
-    for c, s, sd, sdd in zip(prescribed, P, Pd, Pdd):
-        f = convert(spec.prescribed[c])
-        fd = _diff(f, T_)
-        motion |= {s: f, sd: fd, sdd: _diff(fd, T_)}
+    def on_schedule(self, expr) -> sp.Expr:
+        """`expr` with the prescribed coordinates and their rates replaced by f(t)."""
+        return expr.xreplace(self.motion) if self.motion else expr
 
-    def on_schedule(expr):
-        return expr.xreplace(motion) if motion else expr
-
-    coords, rates, accels = list(Q) + P, list(Qd) + Pd, list(Qdd) + Pdd
-    L = convert(spec.kinetic) - convert(spec.potential)
-    forces = [convert(spec.forces.get(c, 0)) for c in q + prescribed]
-    momenta = [_compact(_diff(L, r)) for r in rates]
-
-    def lagrange_rest(s):
+    def lagrange_rest(self, s: int) -> sp.Expr:
         """d/dt(p_s) without the terms in accelerations, - dL/dq_s - Q_s."""
-        terms = [_diff(momenta[s], c) * r for c, r in zip(coords, rates)]
-        terms += [_diff(momenta[s], T_), -_diff(L, coords[s]), -forces[s]]
+        momentum, T_ = self.momenta[s], self.t
+        terms = [_diff(momentum, c) * r for c, r in zip(self.coords, self.rates)]
+        terms += [_diff(momentum, T_), -_diff(self.L, self.coords[s]), -self.forces[s]]
         return sp.Add(*terms)
 
+
+def _mass_and_forcing(g: _Lagrangian) -> tuple[sp.Matrix, sp.Matrix]:
+    """M_sk = dp_s/dqdot_k (half of it formed) and F_s = -(the rest of equation s), with
+    the prescribed accelerations' terms moved into F."""
+    n = len(g.Q)
     mass = sp.zeros(n, n)
     for s in range(n):
         for k in range(s, n):
-            mass[s, k] = mass[k, s] = _compact(on_schedule(_diff(momenta[s], Qd[k])))
+            mass[s, k] = mass[k, s] = _compact(g.on_schedule(_diff(g.momenta[s], g.Qd[k])))
     forcing = sp.zeros(n, 1)
     for s in range(n):
-        driven = [_diff(momenta[s], pd) * pdd for pd, pdd in zip(Pd, Pdd)]
-        forcing[s] = _compact(on_schedule(-sp.Add(lagrange_rest(s), *driven)))
+        driven = [_diff(g.momenta[s], pd) * pdd for pd, pdd in zip(g.Pd, g.Pdd)]
+        forcing[s] = _compact(g.on_schedule(-sp.Add(g.lagrange_rest(s), *driven)))
+    return mass, forcing
 
-    constraints = [_compact(on_schedule(convert(c))) for c in spec.constraints]
-    B = sp.Matrix(m, n, lambda r, k: _diff(constraints[r], Qd[k]))
-    if any(set(Qd) & e.free_symbols for e in B):
+
+def _constraint_forms(g: _Lagrangian) -> tuple[sp.Matrix, sp.Matrix, sp.Matrix]:
+    """(B, b, gamma) of the constraints B qdot + b = 0 and of their rate B qddot = gamma."""
+    n, m = len(g.Q), len(g.spec.constraints)
+    constraints = [_compact(g.on_schedule(g.convert(c))) for c in g.spec.constraints]
+    B = sp.Matrix(m, n, lambda r, k: _diff(constraints[r], g.Qd[k]))
+    if any(set(g.Qd) & e.free_symbols for e in B):
         raise ValueError(PFAFFIAN)
-    bias = sp.Matrix([c.xreplace({r: 0 for r in Qd}) for c in constraints])
+    bias = sp.Matrix([c.xreplace({r: 0 for r in g.Qd}) for c in constraints])
     gamma = sp.zeros(m, 1)
     for r in range(m):
         c = constraints[r]  # B qdot + b, whose rate without the accelerations is -gamma
-        gamma[r] = _compact(-sp.Add(*[_diff(c, a) * ad for a, ad in zip(Q, Qd)], _diff(c, T_)))
+        rate = [_diff(c, a) * ad for a, ad in zip(g.Q, g.Qd)]
+        gamma[r] = _compact(-sp.Add(*rate, _diff(c, g.t)))
+    return (B if m else sp.zeros(0, n)), (bias if m else sp.zeros(0, 1)), gamma
 
-    power = sp.Add(*[on_schedule(forces[s]) * Qd[s] for s in range(n)])
+
+def _power_and_outputs(g: _Lagrangian) -> tuple[sp.Expr, dict]:
+    """The power of the given forces and of the drives of the prescribed coordinates (not
+    yet compacted), and the outputs: each drive's reaction, then the spec's outputs."""
+    n = len(g.Q)
+    power = sp.Add(*[g.on_schedule(g.forces[s]) * g.Qd[s] for s in range(n)])
     outputs = {}
-    for j, c in enumerate(prescribed):
+    for j, c in enumerate(g.spec.prescribed):
         # the drive supplies the reaction; given forces on p also work as p follows f(t)
         s = n + j
-        accel = [_diff(momenta[s], r) * a for r, a in zip(rates, accels)]
-        reaction = _compact(on_schedule(sp.Add(lagrange_rest(s), *accel)))
+        accel = [_diff(g.momenta[s], r) * a for r, a in zip(g.rates, g.accels)]
+        reaction = _compact(g.on_schedule(sp.Add(g.lagrange_rest(s), *accel)))
         outputs[f"reaction_{c.name}"] = reaction
-        power += (reaction + on_schedule(forces[s])) * motion[Pd[j]]
-    for name, expr in spec.outputs.items():
-        outputs[name] = _compact(on_schedule(convert(expr)))
+        power += (reaction + g.on_schedule(g.forces[s])) * g.motion[g.Pd[j]]
+    for name, expr in g.spec.outputs.items():
+        outputs[name] = _compact(g.on_schedule(g.convert(expr)))
+    return power, outputs
 
+
+def _point_forces(g: _Lagrangian) -> dict:
+    """Point name -> the generalised forces (n) of a force (f0, f1[, f2]) at the point,
+    by its virtual work."""
+    q = list(g.spec.coordinates)
     force = sp.symbols("f0:3")
     points = {}
-    for name, v in spec.points.items():  # virtual work of a force at the point
+    for name, v in g.spec.points.items():
         Q_point = generalized_forces(q, [(v, sp.Matrix(force[: len(v)]))])
-        points[name] = [_compact(on_schedule(convert(Q_point[c]))) for c in q]
+        points[name] = [_compact(g.on_schedule(g.convert(Q_point[c]))) for c in q]
+    return points
 
+
+def derive(spec: ModelSpec) -> Derived:
+    """Form Lagrange's equations of `spec`: M, F, B, b, gamma, T, V, the power and the
+    outputs in plain symbols (see the module docstring)."""
+    g = _Lagrangian(spec)
+    mass, forcing = _mass_and_forcing(g)
+    B, bias, gamma = _constraint_forms(g)
+    power, outputs = _power_and_outputs(g)
+    points = _point_forces(g)
     code = CodeForms(
         mass=mass,
         forcing=forcing,
-        constraint_matrix=B if m else sp.zeros(0, n),
-        constraint_bias=bias if m else sp.zeros(0, 1),
+        constraint_matrix=B,
+        constraint_bias=bias,
         constraint_accel=gamma,
-        kinetic=_compact(on_schedule(convert(spec.kinetic))),
-        potential=_compact(on_schedule(convert(spec.potential))),
+        kinetic=_compact(g.on_schedule(g.convert(spec.kinetic))),
+        potential=_compact(g.on_schedule(g.convert(spec.potential))),
         power=_compact(power),
         outputs=outputs,
-        x=tuple(Q) + tuple(Qd),
-        z=tuple(Qdd) + tuple(lam),
-        u=tuple(plain[u] for u in spec.inputs),
-        p=tuple(plain[s] for s in spec.parameters),
+        x=tuple(g.Q) + tuple(g.Qd),
+        z=tuple(g.Qdd) + tuple(g.lam),
+        u=tuple(g.plain[u] for u in spec.inputs),
+        p=tuple(g.plain[s] for s in spec.parameters),
         points=points,
     )
     return Derived(spec, code, _multipliers(spec))

@@ -115,75 +115,84 @@ def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
             else:
                 erk_row(T, X, U, P[r], h, substeps, a, w, c, out, r)
         return
-    n2 = X.shape[1]
-    pc = np.empty((p.shape[0], 0 if P is None else m))  # the block's parameters, as columns
-    if P is not None:
-        for b in range(m):
-            for i in range(p.shape[0]):
-                pc[i, b] = P[lo + b, i]
-    wc = np.empty((N_Q, 0 if W is None else m))  # the block's generalised forces, as columns
-    if W is not None:
-        for b in range(m):
-            for i in range(N_Q):
-                wc[i, b] = W[lo + b, i]
-    s_count = w.shape[0]
-    x = np.empty((n2, m))
-    xs = np.empty((n2, m))
-    k = np.empty((s_count, n2, m))
-    u = np.empty((U.shape[1], m))
+    pc = as_columns(P, p.shape[0], lo, m)  # the block's parameters
+    wc = as_columns(W, N_Q, lo, m)  # the block's generalised forces
+    x = as_columns(X, X.shape[1], lo, m)
+    u = as_columns(U, U.shape[1], lo, m)
     t = np.empty(m)
-    ts = np.empty(m)
     for b in range(m):
         t[b] = T[lo + b]
-        for i in range(n2):
-            x[i, b] = X[lo + b, i]
-        for j in range(U.shape[1]):
-            u[j, b] = U[lo + b, j]
+    xs = np.empty_like(x)  # a stage's state, and the step's weighted sum
+    k = np.empty((w.shape[0],) + x.shape)  # the stages' derivatives
+    ts = np.empty(m)  # a stage's times
     for _ in range(substeps):
-        for s in range(s_count):
-            for b in range(m):
-                ts[b] = t[b] + c[s] * h
-            if s == 0:
-                if P is None:
-                    derivative_lanes(ts, x, u, p, k[0])
-                elif W is None:
-                    derivative_lanes_p(ts, x, u, pc, k[0])
-                else:
-                    derivative_lanes_w(ts, x, u, pc, wc, k[0])
-                continue
-            for i in range(n2):
-                for b in range(m):
-                    xs[i, b] = 0.0
-                for j in range(s):
-                    f = a[s, j]
-                    if f != 0.0:
-                        for b in range(m):
-                            xs[i, b] += f * k[j, i, b]
-                for b in range(m):
-                    xs[i, b] = x[i, b] + h * xs[i, b]
-            if P is None:
-                derivative_lanes(ts, xs, u, p, k[s])
-            elif W is None:
-                derivative_lanes_p(ts, xs, u, pc, k[s])
-            else:
-                derivative_lanes_w(ts, xs, u, pc, wc, k[s])
-        for i in range(n2):
-            for b in range(m):
-                xs[i, b] = 0.0
-            for s in range(s_count):
-                f = w[s]
-                if f != 0.0:
-                    for b in range(m):
-                        xs[i, b] += f * k[s, i, b]
-            for b in range(m):
-                x[i, b] += h * xs[i, b]
-        for b in range(m):
-            t[b] += h
+        erk_step(t, x, u, p, pc, wc, P, W, h, a, w, c, xs, k, ts)
         if N_C:
             project_columns(t, x, p, P, lo)
     for b in range(m):
-        for i in range(n2):
+        for i in range(x.shape[0]):
             out[lo + b, i] = x[i, b]
+
+
+@njit(inline="always", error_model="numpy")
+def as_columns(R, width, lo, m):
+    """Rows lo..lo + m of R (N, width) as the columns of a new (width, m) array; a
+    (width, 0) array where R is None (numba prunes the branch)."""
+    if R is None:
+        return np.empty((width, 0))
+    cols = np.empty((width, m))
+    for b in range(m):
+        for i in range(width):
+            cols[i, b] = R[lo + b, i]
+    return cols
+
+
+@njit(inline="always", error_model="numpy")
+def erk_step(t, x, u, p, pc, wc, P, W, h, a, w, c, xs, k, ts):
+    """One step of size h of the tableau (a, w, c) on the block's columns x (2n, m) at
+    times t, in place: stage s's derivative k[s] at t + c_s h and x + h sum_j a_sj k[j],
+    then x += h sum_s w_s k[s], t += h. xs, k and ts are work arrays; the parameters are
+    chosen as in `lanes_derivative`."""
+    for s in range(w.shape[0]):
+        for b in range(ts.shape[0]):
+            ts[b] = t[b] + c[s] * h
+        if s == 0:
+            lanes_derivative(ts, x, u, p, pc, wc, P, W, k[0])
+            continue
+        weighted_sum(x, k, a[s], s, h, xs, xs)
+        lanes_derivative(ts, xs, u, p, pc, wc, P, W, k[s])
+    weighted_sum(x, k, w, w.shape[0], h, xs, x)
+    for b in range(t.shape[0]):
+        t[b] += h
+
+
+@njit(inline="always", error_model="numpy")
+def weighted_sum(x, k, f, count, h, acc, dest):
+    """dest <- x + h (sum over j < count of f_j k[j]), column by column, summed in acc
+    first (dest may be acc or x); stages of weight zero are skipped."""
+    for i in range(x.shape[0]):
+        for b in range(x.shape[1]):
+            acc[i, b] = 0.0
+        for j in range(count):
+            fj = f[j]
+            if fj != 0.0:
+                for b in range(x.shape[1]):
+                    acc[i, b] += fj * k[j, i, b]
+        for b in range(x.shape[1]):
+            dest[i, b] = x[i, b] + h * acc[i, b]
+
+
+@njit(inline="always", error_model="numpy")
+def lanes_derivative(t, x, u, p, pc, wc, P, W, d):
+    """d <- the derivative of the columns x: `derivative_lanes` with p (P None),
+    `derivative_lanes_p` with each column's own parameters pc, or `derivative_lanes_w`
+    with the generalised forces wc too (W not None). numba prunes the other branches."""
+    if P is None:
+        derivative_lanes(t, x, u, p, d)
+    elif W is None:
+        derivative_lanes_p(t, x, u, pc, d)
+    else:
+        derivative_lanes_w(t, x, u, pc, wc, d)
 
 
 LANES_FROM = 8

@@ -224,22 +224,8 @@ def source(plan: dict) -> str:
             "        for j in range(actuated.shape[0]):",
             "            U[b, actuated[j]] = applied[b, j]",
         ]
-    # the parameters: one vector for every row, or each row's own (then the first row's
-    # gives the kernels the vector's shape); pushes add the generalised forces W
     params = "model_params[0], model_params" if plan.get("rows") else "model_params, None"
-    forces = "W" if plan.get("pushed") else "None"
-    if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
-        one = "model_params[r]" if plan.get("rows") else "model_params"
-        lines += [
-            "    for r in range(n):  # the model's erk_row, one row at a time",
-            f"        _erk_row(T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r)",
-        ]
-    else:
-        lines += [
-            "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
-            f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
-            "             min(n, lo + block))",
-        ]
+    lines += _integrate_lines(plan, params)
     lines += [
         "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
         "                            steps_left)",
@@ -264,6 +250,25 @@ def source(plan: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _integrate_lines(plan: dict, params: str) -> list[str]:
+    """The lines that advance every row one control period with the model's integrator.
+    `params`: the kernels' parameter arguments, one vector for every row, or each row's own
+    (then the first row's gives the kernels the vector's shape); pushes add the
+    generalised forces W."""
+    if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
+        one = "model_params[r]" if plan.get("rows") else "model_params"
+        return [
+            "    for r in range(n):  # the model's erk_row, one row at a time",
+            f"        _erk_row(T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r)",
+        ]
+    forces = "W" if plan.get("pushed") else "None"
+    return [
+        "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
+        f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
+        "             min(n, lo + block))",
+    ]
 
 
 def _unpack(lines: list[str], plan: dict) -> None:
