@@ -44,7 +44,13 @@ class _SignalAt(train_mod.GracefulStop):
         return super()._on_step()
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+# One handler (GracefulStop.SIGNALS) takes both signals: SIGINT trains in the fast suite,
+# SIGTERM (its own disposition and exit code) with -m slow, each a training of ~1.5 s
+@pytest.mark.parametrize(
+    "signum",
+    [signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)],
+    ids=["SIGINT", "SIGTERM"],
+)
 def test_a_signal_saves_the_model_and_a_checkpoint_the_run_resumes_from(
     signum, tmp_path, monkeypatch
 ):

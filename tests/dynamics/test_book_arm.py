@@ -67,6 +67,8 @@ def test_book_generalised_forces_hold_for_net_link_torques(arm):
     assert (arm.equations() - book_725(arm, M1, M2)).applyfunc(sp.simplify) != sp.zeros(2, 1)
 
 
+@pytest.mark.slow  # simplifies the display equations: ~2 s; M and K of (7.26) are checked
+# numerically in the fast suite (test_ch7_modes.py::test_matrices_are_those_of_726)
 def test_small_angle_linearisation_equals_726(arm):
     th1, th2, p, M1, M2 = _symbols(arm)
     eqs = arm.equations().subs({M1: 0, M2: 0})

@@ -110,6 +110,7 @@ def _cartesian_with_multiplier(curve: str, values: dict) -> ModelSpec:
     )
 
 
+@pytest.mark.slow  # compiles two models of its own (moving curve, Cartesian): ~15 s cold
 def test_moving_curve_agrees_with_cartesian_motion_and_its_multiplier():
     defaults = {"k": 0.5, "A": 0.2, "Omega": 3.0}
     system = dynamics.get_model("particle_on_curve").compile()

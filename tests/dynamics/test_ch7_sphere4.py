@@ -77,6 +77,7 @@ def _cartesian_4d() -> ModelSpec:
     )
 
 
+@pytest.mark.slow  # compiles a model of its own (the Cartesian particle): ~10 s cold
 def test_agrees_with_cartesian_motion_under_the_sphere_constraint(model, system):
     cart = dynamics.Model(_cartesian_4d()).compile()
     theta, varphi, psi = model.spec.coordinates

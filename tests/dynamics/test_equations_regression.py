@@ -98,11 +98,16 @@ def _reference() -> dict[str, dict[str, np.ndarray]]:
 
 
 def _cases():
-    """Registered models in the fast suite; the examples' models (compiled cold only here,
-    linearisation and all: several seconds each) with -m slow."""
+    """The fast suite keeps the built-in envs' models and the driven bead on its rotating
+    rod: unconstrained, closed-chain, nonholonomic and rheonomic equations, all through the
+    same derivation and code generation. The chapter's particles and the examples' models
+    (each compiled cold for every kernel here, several seconds each; their physics is
+    checked against the book in their own files) run with -m slow."""
     slow = pytest.mark.slow
     models = [n for n in dynamics.list_models() if n not in NO_REFERENCE]
-    return models + [pytest.param(n, marks=slow) for n in EXAMPLES.values()]
+    return [pytest.param(n, marks=slow) if n.startswith("particle_") else n for n in models] + [
+        pytest.param(n, marks=slow) for n in EXAMPLES.values()
+    ]
 
 
 @pytest.mark.parametrize("name", _cases())

@@ -22,7 +22,13 @@ def test_global_error_falls_at_the_methods_order(method):
     assert 2 ** (order - 1) < errors[0] / errors[1] < 2 ** (order + 1)
 
 
-@pytest.mark.parametrize("name", SCLERONOMIC)
+# the driven bead's threaded kernels (unconstrained, as the arm's) only with -m slow: they
+# are compiled for this test alone (about 5 s of CPU from a cold cache)
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=pytest.mark.slow) if n == "bead_on_driven_rod" else n
+     for n in SCLERONOMIC],
+)  # fmt: skip
 @pytest.mark.parametrize("method", list(METHODS))
 def test_rows_step_alike_whatever_shares_their_block_and_however_many_threads(name, method):
     n = 3 * BLOCK + 5  # several blocks and a ragged last one
