@@ -4,17 +4,15 @@ tests against the equations users already trust (Gymnasium's CartPole-v1 and Acr
 
 from __future__ import annotations
 
-import warnings
-
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 
 import dynamics
 from agents.control.policies import ZeroPolicy
 from agents.scoring import closed_loop
 from examples import cart_pole, double_cart_pole, furuta
+from tests.examples.checkers import assert_both_checkers_pass
 
 EXAMPLES = {
     "Examples/CartPole-v0": cart_pole,
@@ -33,12 +31,7 @@ def test_each_example_reads_its_inputs_by_name(env_id):
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_both_checkers_pass(env_id):
-    from stable_baselines3.common.env_checker import check_env as sb3_check_env
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_env(gym.make(env_id, render_mode="rgb_array").unwrapped, skip_render_check=False)
-        sb3_check_env(gym.make(env_id).unwrapped)
+    assert_both_checkers_pass(env_id)
 
 
 @pytest.mark.parametrize("env_id", IDS)

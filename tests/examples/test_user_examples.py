@@ -7,12 +7,10 @@ SB3's checkers, LQR from the task's region, and the examples' list."""
 from __future__ import annotations
 
 import importlib
-import warnings
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 
 import dynamics
 import examples
@@ -20,6 +18,7 @@ from agents.control.policies import ZeroPolicy
 from agents.scoring import closed_loop
 from examples import gantry_crane, pendubot, planar_vtol, reaction_wheel, segway, series_elastic
 from tests.examples import kane
+from tests.examples.checkers import assert_both_checkers_pass
 
 MODULES = {
     m.ID: m for m in (reaction_wheel, pendubot, gantry_crane, series_elastic, planar_vtol, segway)
@@ -105,12 +104,7 @@ def test_energy_matches_kanes_bodies(env_id):
 
 @pytest.mark.parametrize("env_id", STEPPED)
 def test_both_checkers_pass(env_id):
-    from stable_baselines3.common.env_checker import check_env as sb3_check_env
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_env(gym.make(env_id, render_mode="rgb_array").unwrapped, skip_render_check=False)
-        sb3_check_env(gym.make(env_id).unwrapped)
+    assert_both_checkers_pass(env_id)
 
 
 @pytest.mark.parametrize("env_id", STEPPED)
