@@ -19,6 +19,7 @@ inverse maps (observation -> state and goal) need.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -29,6 +30,21 @@ from numba import njit
 from dynamics.checks import did_you_mean
 
 from .task import Angle, AngleError, Derived, Task, Value, resolve
+
+
+def read_only(record) -> None:
+    """Make the arrays of the frozen dataclass `record` (and those inside its tuples)
+    read-only, so that nobody writes what a frozen record holds."""
+    def freeze(value):
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+        elif isinstance(value, tuple):
+            for v in value:
+                freeze(v)
+
+    for field in dataclasses.fields(record):
+        freeze(getattr(record, field.name))
+
 
 OP_VALUE, OP_COS, OP_SIN, OP_COS_DIFF, OP_SIN_DIFF, OP_DERIVED, OP_CONTEXT = range(7)
 
@@ -58,6 +74,9 @@ class Observation:
     unobserved: tuple[str, ...]  # coordinates the observation does not show
     state_map: tuple  # (angles, values, unobserved rates) of the state's inverse map
     goal_map: tuple  # (angles, values, fixed, missing) of the goal's inverse map
+
+    def __post_init__(self):
+        read_only(self)
 
     @property
     def size(self) -> int:

@@ -28,7 +28,7 @@ import numpy as np
 from . import checks, observation, starts
 from .checks import real_array
 from .names import operating_state as call_operating_point
-from .observation import Observation, compile_observation
+from .observation import Observation, compile_observation, read_only
 from .perturb import Perturbations
 from .randomize import Randomization, observed
 from .resolved import (
@@ -75,6 +75,9 @@ class Plant:
     randomize: Randomization | None = None
     # the checked `perturb=` option (envs.perturb), or None: the env's runtime applies it
     perturb: Perturbations | None = None
+
+    def __post_init__(self):
+        read_only(self)
 
     @classmethod
     def build(cls, task: Task, options: dict[str, Any] | None = None) -> Plant:

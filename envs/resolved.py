@@ -124,7 +124,9 @@ def parameter_record(task: Task, system) -> np.record:
                 f"Task {task.name!r}: `constants[{k!r}]` must be finite, got {v!r}."
             )
     dtype = [(n, np.float64) for n in values]
-    return np.rec.array([tuple(float(v) for v in values.values())], dtype=dtype)[0]
+    records = np.rec.array([tuple(float(v) for v in values.values())], dtype=dtype)
+    records.flags.writeable = False  # a record taken from a read-only array is read-only
+    return records[0]
 
 
 def stepping(task: Task, opts: dict) -> dict:
