@@ -241,13 +241,17 @@ def bind_fused(rt, actions: np.ndarray):
 
 # ---- a new step compiled in the background -----------------------------------------------
 _COMPILING: set[threading.Thread] = set()
+SEPARATE_FIRST = 100
+"""Steps a runtime takes by separate calls before its new fused step starts compiling: an
+env stepped a few times (a check, a test, a look at a model) never compiles it."""
 
 
 def fused_for(rt, actions: np.ndarray):
     """Runtime `rt`'s fused step bound for arrays like `actions`, or None while it compiles
     in the background: where the rows step one at a time (`Runtime._row_by_row`) and
     numba's cache does not have the step, it compiles in a thread of its own, and until it
-    is bound `Runtime.step` takes the step of separate calls. Those give the same results
+    is bound `Runtime.step` takes the step of separate calls; the thread starts at the
+    step after the first `SEPARATE_FIRST`. Those give the same results
     bit for bit and run only code that the fused step links, compiled here first (the
     model's `erk_row`; the task's functions and the runtime's kernels are already): a
     first call of a kernel while the thread compiles would wait for numba's compiler lock,
@@ -260,6 +264,9 @@ def fused_for(rt, actions: np.ndarray):
         return None
     if pending is not None or not rt._row_by_row or _kernel_compiled(rt._fused):
         return bind_fused(rt, actions)
+    rt._separate_steps += 1
+    if rt._separate_steps <= SEPARATE_FIRST:
+        return None
     plant = rt.plant
     rt._erk_row = warm(rt._erk_row, *rt._erk_row_args(0))
     warm(apply_actions, actions, plant.input_mid, plant.input_half, plant.actuated, rt.A, rt.U)

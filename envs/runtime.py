@@ -141,6 +141,7 @@ class Runtime:
         self._row_by_row = self.n < module.LANES_FROM and not self._pushed
         self._erk_row, self._tableau = module.erk_row, method_tableau(self.integrator)
         self._fused_pending = None  # the thread compiling the fused step, if one does
+        self._separate_steps = 0  # steps taken by separate calls while it was not bound
         compiled.compile_fused(self, jitted)
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled

@@ -17,6 +17,7 @@ from envs import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.envs.test_runtime import with_first_term
+from tests.matrix import over
 
 IDS = list(envs.ENV_IDS) + [
     "Examples/CartPole-v0",
@@ -34,7 +35,7 @@ def _pair(env_id, n, **kwargs):
     return fused, separate
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_the_fused_step_equals_the_separate_calls_bit_for_bit(env_id):
     fused, separate = _pair(env_id, 3, max_episode_steps=7)  # crosses episode ends
     o1, _ = fused.reset(seed=5)
@@ -214,13 +215,29 @@ def test_a_new_fused_step_compiles_in_the_background_and_steps_the_same(monkeypa
                 out.append(env.reset()[0])
         return np.concatenate([np.ravel(np.asarray(o, np.float64)) for o in out])
 
-    expected = run(gym.make("Examples/CartPole-v0"))
+    steps = compiled.SEPARATE_FIRST + 40
+    expected = run(gym.make("Examples/CartPole-v0"), steps)
     monkeypatch.setattr(compiled, "_kernel_compiled", lambda kernel: False)  # not cached
     env = gym.make("Examples/CartPole-v0")
     rt = env.unwrapped._rt
-    got = run(env)  # its first step starts the thread and steps by separate calls
+    got = run(env, steps)  # separate calls; the thread starts after SEPARATE_FIRST steps
     assert rt._fused_pending is not None
     assert np.array_equal(got, expected)
     compiled.wait_for_background()
     assert list(rt._fused_bound) == [(np.dtype(np.float32), True, True, True)]
-    assert np.array_equal(run(env), expected)
+    assert np.array_equal(run(env, steps), expected)
+
+
+def test_an_env_stepped_a_few_times_never_compiles_its_fused_step(monkeypatch):
+    from envs import compiled
+
+    monkeypatch.setattr(compiled, "_kernel_compiled", lambda kernel: False)  # not cached
+    env = gym.make("Examples/CartPole-v0")
+    env.reset(seed=0)
+    for _ in range(compiled.SEPARATE_FIRST):
+        if any(env.step(env.action_space.sample())[2:4]):
+            env.reset()
+    rt = env.unwrapped._rt
+    assert rt._fused_pending is None and not rt._fused_bound
+    env.step(env.action_space.sample())  # one more: the step starts compiling
+    assert rt._fused_pending is not None
