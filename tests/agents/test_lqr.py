@@ -9,6 +9,7 @@ from agents.control import linear
 from agents.control.policies import ZeroPolicy
 from agents.scoring import closed_loop
 from envs import acrobot
+from tests.matrix import over
 
 
 @pytest.fixture(scope="module")
@@ -181,7 +182,7 @@ envs = pytest.importorskip("envs")
 
 # the bicycle's plain LQR is refused (its constraints tie pitch and yaw rate to lean and
 # steer); its heuristic, the constraint-reduced LQR, is tested in test_bicycle_env.py
-@pytest.mark.parametrize("env_id", [e for e in envs.ENV_IDS if "/Bicycle-" not in e])
+@pytest.mark.parametrize("env_id", over(e for e in envs.ENV_IDS if "/Bicycle-" not in e))
 def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
     # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
     # within the task's LQR region, at most 1/1.6 of the largest region with >= 99 %

@@ -17,6 +17,7 @@ from gymnasium.utils.env_checker import check_env
 import envs
 from envs import rendering
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
+from tests.matrix import over
 
 # the built-ins, the 3 N*m acrobot they replaced, and systems beyond the book (examples/):
 # every env, a user's too, keeps the same contract
@@ -57,7 +58,7 @@ def test_ids_are_registered_with_limits_and_vector_entry_points():
         assert spec.vector_entry_point is not None
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_gymnasium_checker(env_id):
     env = gym.make(env_id, render_mode="rgb_array").unwrapped
     with warnings.catch_warnings():
@@ -65,7 +66,7 @@ def test_gymnasium_checker(env_id):
         check_env(env, skip_render_check=False)
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_stable_baselines3_checker(env_id):
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
     env = gym.make(env_id).unwrapped  # (an older version's id warns that it is older)
@@ -74,7 +75,7 @@ def test_stable_baselines3_checker(env_id):
         sb3_checker.check_env(env)
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_same_seed_same_trajectory_bit_for_bit(env_id):
     a = rollout(gym.make(env_id), seed=3, steps=50)
     b = rollout(gym.make(env_id), seed=3, steps=50)
@@ -85,7 +86,7 @@ def test_same_seed_same_trajectory_bit_for_bit(env_id):
     assert not np.array_equal(a[0][2], c[0][2])
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 @pytest.mark.parametrize("clone", [pickle.loads, copy.deepcopy], ids=["pickle", "deepcopy"])
 def test_pickle_and_deepcopy_continue_the_same_trajectory(env_id, clone):
     env = gym.make(env_id, render_mode="rgb_array")
@@ -101,7 +102,7 @@ def test_pickle_and_deepcopy_continue_the_same_trajectory(env_id, clone):
     assert twin.render().shape == (rendering.SIZE, rendering.SIZE, 3)
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_vector_env_reproduces_single_envs(env_id):
     n, steps = 3, 40
     vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
@@ -150,7 +151,7 @@ def test_vector_env_autoresets_on_the_next_step():
     np.testing.assert_allclose(rates, info["state"][:, 2:], rtol=1e-6)  # float32 observation
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_random_actions_stay_finite_for_ten_thousand_steps(env_id):
     vec = gym.make_vec(env_id, num_envs=100, vectorization_mode="vector_entry_point")
     obs, _ = vec.reset(seed=0)
@@ -164,7 +165,7 @@ def test_random_actions_stay_finite_for_ten_thousand_steps(env_id):
         assert ((obs >= space.low) & (obs <= space.high)).all()
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_rendering_returns_frames_of_the_documented_shape(env_id):
     env = gym.make(env_id, render_mode="rgb_array")
     env.reset(seed=0)
@@ -187,7 +188,7 @@ def test_rendering_returns_frames_of_the_documented_shape(env_id):
     )
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_bad_actions_are_refused(env_id):
     env = gym.make(env_id).unwrapped
     with pytest.raises(RuntimeError, match="reset"):
@@ -220,7 +221,7 @@ def test_bad_actions_are_refused(env_id):
         vec.step(np.array([np.zeros(n), np.full(n, np.nan)]))
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_bad_keyword_arguments_name_the_problem(env_id):
     env = gym.make(env_id).unwrapped
     name = next(iter(env.system.parameters))
@@ -244,7 +245,7 @@ def test_bad_keyword_arguments_name_the_problem(env_id):
         env.reset(options={"state": np.zeros(3)})
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_keyword_arguments_reach_the_model(env_id):
     env = gym.make(env_id, control_period=0.02, substeps=3, max_input=0.5).unwrapped
     assert env.control_period == 0.02 and env.substeps == 3
@@ -253,7 +254,7 @@ def test_keyword_arguments_reach_the_model(env_id):
     assert gym.make(env_id, **{name: 2 * value}).unwrapped.system.parameters[name] == 2 * value
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_contract_attributes(env_id):
     env = gym.make(env_id).unwrapped
     obs, info = env.reset(seed=2)

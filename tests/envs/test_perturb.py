@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 
 import envs
+from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
 # The bicycle's perturbed kernels are compiled for this check alone (about 16 s of CPU from
 # a cold cache): its rows run with -m slow; every other built-in env keeps it fast.
-PERTURBED_IDS = [
-    pytest.param(e, marks=pytest.mark.slow) if "/Bicycle-" in e else e for e in envs.ENV_IDS
-]
+PERTURBED_IDS = over(envs.ENV_IDS)
 PUSH = {"force": 8.0, "every": 0.3, "duration": 0.1}
 ALL = {"obs_noise": 0.02, "action_noise": 0.3, "motor_k": 0.6, "delay": 2, "push": PUSH}
 NEUTRAL = {

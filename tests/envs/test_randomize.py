@@ -13,14 +13,13 @@ import pytest
 
 import envs
 from agents.control.lqr_policy import LQRPolicy
+from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
 # The bicycle's per-copy kernels are compiled for this test alone (about 20 s of CPU from a
 # cold cache, longer than the rest of the file): its rows run with -m slow. Every other
 # built-in env keeps the check in the fast suite, through the same per-copy kernels.
-PER_COPY_IDS = [
-    pytest.param(e, marks=pytest.mark.slow) if "/Bicycle-" in e else e for e in envs.ENV_IDS
-]
+PER_COPY_IDS = over(envs.ENV_IDS)
 
 
 def _vec(env_id, n, **kwargs):

@@ -16,6 +16,7 @@ import envs
 from envs import arm
 from envs.plant import Plant
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
+from tests.matrix import over
 
 IDS = list(envs.ENV_IDS) + [
     "Examples/CartPole-v0",
@@ -28,7 +29,7 @@ def task_of(env_id):
     return gym.spec(env_id).kwargs["task"]
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_observation_inverse_maps_round_trip(env_id):
     env = gym.make(env_id).unwrapped
     plant, rng = env.plant, np.random.default_rng(0)
@@ -53,7 +54,7 @@ def test_observation_inverse_maps_round_trip(env_id):
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_vector_env_equals_single_envs_bit_for_bit_across_episodes(env_id, mode):
     n, limit = 3, 7  # short episodes: every copy crosses several episode boundaries
     vec = gym.make_vec(
@@ -91,7 +92,7 @@ def test_vector_env_equals_single_envs_bit_for_bit_across_episodes(env_id, mode)
     assert ended >= n  # the comparison crossed episode ends
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_ending_early_never_pays(env_id):
     """Every step pays at least the sum of the terms' lower bounds, r_min (the runtime clips
     each term into its declared bounds); a step that ends the episode early adds (steps left)
@@ -123,7 +124,7 @@ def test_ending_early_never_pays(env_id):
         steps[term | trunc] = -1  # the next step resets them (reward 0, counted from 0)
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", over(IDS))
 def test_ending_early_never_pays_when_the_integration_diverges(env_id):
     # one RK4 step of 2 s per control period: the integration itself diverges, so the
     # property above is exercised on every task, not vacuously
