@@ -19,7 +19,9 @@ ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
 # The bicycle's per-copy kernels are compiled for this test alone (about 20 s of CPU from a
 # cold cache, longer than the rest of the file): its rows run with -m slow. Every other
 # built-in env keeps the check in the fast suite, through the same per-copy kernels.
-PER_COPY_IDS = over(envs.ENV_IDS)
+# the per-copy steps of a holonomic and a nonholonomic model by default (each model's are
+# compiled for these tests alone); every model with -m slow
+PER_COPY_IDS = over(envs.ENV_IDS, fast=("Lagrange/TwoLinkArm-v1", "Lagrange/RollingDisk-v1"))
 
 
 def _vec(env_id, n, **kwargs):
