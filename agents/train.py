@@ -52,7 +52,7 @@ from .learning.callbacks import (
 from .learning.curves import CurveLogger
 from .learning.defaults import episode_steps
 from .learning.fingerprint import task_fingerprint
-from .learning.hparams import ALGOS, check_entries, load_hyperparams
+from .learning.hparams import ALGOS, check_entries, load_hyperparams, off_policy
 from .learning.rundir import (
     check_resume_randomize,
     default_run_dir,
@@ -153,7 +153,8 @@ def train(
         }
         _write_config(run_dir, config, env_id, env_options)
         options = dict(
-            eval_freq=eval_freq or budgets.budget_eval_freq(total, hp["n_timesteps"], budget),
+            eval_freq=eval_freq
+            or budgets.budget_eval_freq(total, hp["n_timesteps"], budget, off_policy(algo)),
             eval_episodes=eval_episodes,
             checkpoint_freq=checkpoint_freq or max(total // 5, 1),
             progress=progress,

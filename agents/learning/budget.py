@@ -87,13 +87,19 @@ def budget_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def budget_eval_freq(total: int, declared: int, budget: float | None) -> int:
+def budget_eval_freq(
+    total: int, declared: int, budget: float | None, off_policy: bool = False
+) -> int:
     """Env steps between evaluations: a tenth of the run (at least 2,000); with a time
-    budget, a thirtieth of the declared n_timesteps, at least 10,000 (the acrobot's 3M-step
-    budget would otherwise evaluate first at 300k steps, past a 300 s budget here)."""
+    budget, a thirtieth of the declared n_timesteps (the acrobot's 3M-step budget would
+    otherwise evaluate first at 300k steps, past a 300 s budget here), at least 10,000 for
+    an on-policy learner (PPO trains 3-6k steps a second here: an evaluation of 20
+    episodes every 2-3 s of training would take as long as the training) and 1,000 for an
+    off-policy one (50-100 steps a second here, one gradient step per env step: 10,000
+    steps would be 2-3 minutes between evaluations, most of a short budget)."""
     if budget is None:
         return max(min(total, declared) // 10, 2000)
-    return max(declared // 30, 10_000)
+    return max(declared // 30, 1_000 if off_policy else 10_000)
 
 
 def constant_schedules(hp: dict) -> dict:

@@ -69,6 +69,13 @@ def algorithms() -> dict:
     return {"ppo": PPO, "sac": SAC, "td3": TD3, "tqc": TQC, "crossq": CrossQ}
 
 
+def off_policy(algo: str) -> bool:
+    """Whether learner `algo` learns from a replay buffer (SAC, TD3, TQC, CrossQ)."""
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+    return issubclass(algorithms()[algo], OffPolicyAlgorithm)
+
+
 ALGOS = ALGORITHMS
 """The names of `algorithms()` (dynamics.checks.ALGORITHMS, without importing SB3)."""
 

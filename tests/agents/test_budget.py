@@ -126,3 +126,17 @@ def test_cli_takes_a_budget_and_says_so(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main([BEAD, "--budget", "soon"])
     assert "expected a time such as 600, 90s, 10m or 1.5h" in capsys.readouterr().err
+
+
+def test_a_budget_run_evaluates_an_off_policy_learner_ten_times_as_often():
+    from agents.learning.hparams import off_policy
+
+    assert [off_policy(a) for a in ("ppo", "sac", "td3", "tqc", "crossq")] == [
+        False, True, True, True, True,
+    ]  # fmt: skip
+    # the off-policy YAMLs' 30,000 steps: every 1,000 steps (10-20 s of SAC here), where
+    # PPO's floor of 10,000 steps would leave two minutes between evaluations
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, True) == 1_000
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, False) == 10_000
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 3_000_000, 300.0, True) == 100_000
+    assert budget.budget_eval_freq(50_000, 30_000, None, True) == 3_000  # no budget: as before
