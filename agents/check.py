@@ -15,6 +15,11 @@ one and keeps the earlier, a run whose stored hyperparameters differ from today'
 refused unless --fresh retrains it. Training time is stored in the run directory
 (`TIME_FILE`, summed over resumed segments); evaluation time excludes one-off compilation
 and loading (an untimed first episode per agent).
+
+A system that declares no training budget (no n_timesteps in its task's hyperparameters,
+the packaged YAML's entry or a --hyperparams file; a user's new system) trains until solved
+within 10 minutes (`DEFAULT_SECONDS`, as `--budget 10m`), afresh; the built-in tasks
+declare theirs. `--timesteps` or `--budget` sets every env's.
 """
 
 from __future__ import annotations
@@ -173,6 +178,22 @@ def check_env(
     return rows + alone
 
 
+DEFAULT_SECONDS = 600.0
+"""The wall-clock budget of a system that declares no training budget of its own: with
+neither --timesteps nor --budget, its agent trains until solved, at most 10 minutes."""
+
+
+def seconds_of(env_id, algo, timesteps, seconds, hyperparams) -> float | None:
+    """The wall-clock budget `env_id`'s agent trains within: `seconds` if given; else
+    `DEFAULT_SECONDS` where no step count is asked for or declared (the task's
+    hyperparameters, the YAML's entry for the env, a --hyperparams file); else None (the
+    declared steps)."""
+    if seconds or timesteps is not None:
+        return seconds or None
+    name = algo or hparams.check_algo(env_id)
+    return None if hparams.declares_steps(name, env_id, hyperparams) else DEFAULT_SECONDS
+
+
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
     """The training budget: `timesteps`, else the hyperparameters' n_timesteps."""
     if timesteps is not None:
@@ -229,7 +250,9 @@ def run_check(
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
     the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
     seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
-    always a fresh run: a clock cannot be resumed)."""
+    always a fresh run: a clock cannot be resumed). With neither `timesteps` nor `seconds`,
+    an env whose training budget nobody declares trains so within `DEFAULT_SECONDS`
+    (`seconds_of`), the others for their declared steps."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -237,9 +260,10 @@ def run_check(
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
-    fresh = fresh or bool(seconds)
-    if not fresh:
-        check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
+    timed = {e: seconds_of(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
+    if not fresh:  # a budget of time always trains afresh: a clock cannot be resumed
+        stepped = [e for e in env_ids if not timed[e]]
+        check_runs_on_disk(stepped, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     print(
         f"The report goes to {report}/ (trained runs: {out / 'train'}/). In the lines below, "
@@ -255,8 +279,8 @@ def run_check(
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
-            env_id, algo, episodes, seed, out, timesteps, fresh, progress, log, hyperparams,
-            report, randomize, seconds, diagnoses, refused,
+            env_id, algo, episodes, seed, out, timesteps, fresh or bool(timed[env_id]),
+            progress, log, hyperparams, report, randomize, timed[env_id], diagnoses, refused,
         )  # fmt: skip
     total = time.perf_counter() - start
     diagnosis = "".join(f"- {line}\n" for line in diagnoses)
@@ -313,7 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=budget_arg,
         help="train each agent until solved (>= 80 %% evaluated success twice in a row) "
         "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
-        "instead of --timesteps (agents.learning.budget)",
+        "instead of --timesteps (agents.learning.budget); without either, a system whose task "
+        "and hyperparameters declare no n_timesteps trains so for 10m",
     )
     parser.add_argument(
         "--out",

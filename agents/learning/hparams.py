@@ -285,6 +285,21 @@ def check_algo_name(algo: str) -> str:
     return algo
 
 
+def declares_steps(algo: str, env_id: str, path: str | Path | None = None) -> bool:
+    """Whether anything but the YAML's `default` gives `env_id` its n_timesteps for `algo`:
+    the task's `hyperparams[algo]`, the packaged YAML's entry for env_id, or the file at
+    `path` (its `default` or env_id entry)."""
+    tables = [_table(DIRECTORY / f"{algo}.yml").get(env_id, {})]
+    try:
+        tables.append(task_of(env_id).hyperparams.get(algo, {}))
+    except UserError:  # not a Lagrange env: only the files can say
+        pass
+    if path is not None:
+        user = _table(Path(path))
+        tables += [user.get("default", {}), user.get(env_id, {})]
+    return any("n_timesteps" in t for t in tables)
+
+
 def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     """The hyperparameters of `algo` for `env_id` (a fresh dict): the YAML's `default`,
     updated by the task's `hyperparams[algo]`, the YAML's entry for env_id and, if `path`
