@@ -18,7 +18,7 @@ and loading (an untimed first episode per agent).
 
 A system that declares no training budget (no n_timesteps in its task's hyperparameters,
 the packaged YAML's entry or a --hyperparams file; a user's new system) trains until solved
-within 10 minutes (`DEFAULT_SECONDS`, as `--budget 10m`), afresh; the built-in tasks
+within 10 minutes (`agents.learning.declared`, as `--budget 10m`), afresh; the built-in tasks
 declare theirs. `--timesteps` or `--budget` sets every env's.
 """
 
@@ -49,7 +49,7 @@ from .common import (
     write_atomic,
 )
 from .evaluate import BASELINES, heuristic_of
-from .learning import hparams, randomization
+from .learning import declared, hparams, randomization
 from .learning.budget import budget_arg
 from .learning.defaults import describe
 from .learning.fingerprint import check_fingerprint
@@ -178,22 +178,6 @@ def check_env(
     return rows + alone
 
 
-DEFAULT_SECONDS = 600.0
-"""The wall-clock budget of a system that declares no training budget of its own: with
-neither --timesteps nor --budget, its agent trains until solved, at most 10 minutes."""
-
-
-def seconds_of(env_id, algo, timesteps, seconds, hyperparams) -> float | None:
-    """The wall-clock budget `env_id`'s agent trains within: `seconds` if given; else
-    `DEFAULT_SECONDS` where no step count is asked for or declared (the task's
-    hyperparameters, the YAML's entry for the env, a --hyperparams file); else None (the
-    declared steps)."""
-    if seconds or timesteps is not None:
-        return seconds or None
-    name = algo or hparams.check_algo(env_id)
-    return None if hparams.declares_steps(name, env_id, hyperparams) else DEFAULT_SECONDS
-
-
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
     """The training budget: `timesteps`, else the hyperparameters' n_timesteps."""
     if timesteps is not None:
@@ -251,7 +235,7 @@ def run_check(
     the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
     seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
     always a fresh run: a clock cannot be resumed). With neither `timesteps` nor `seconds`,
-    an env whose training budget nobody declares trains so within `DEFAULT_SECONDS`
+    an env whose training budget nobody declares trains so within `declared.DEFAULT_SECONDS`
     (`seconds_of`), the others for their declared steps."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
@@ -260,7 +244,7 @@ def run_check(
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
-    timed = {e: seconds_of(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
+    timed = {e: declared.seconds_of(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
     if not fresh:  # a budget of time always trains afresh: a clock cannot be resumed
         stepped = [e for e in env_ids if not timed[e]]
         check_runs_on_disk(stepped, algo, seed, out, timesteps, hyperparams, randomize)

@@ -127,7 +127,8 @@ def _expanded_size(root) -> int:
     return size(root)
 
 
-def _table(path: Path) -> dict:
+def read_table(path: Path) -> dict:
+    """The hyperparameter file at `path`: env ids (or `default`) to dicts, checked in shape."""
     table = read_yaml(path) or {}
     if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
         raise UserError(f"{path} must map env ids (or 'default') to dicts of hyperparameters.")
@@ -285,28 +286,13 @@ def check_algo_name(algo: str) -> str:
     return algo
 
 
-def declares_steps(algo: str, env_id: str, path: str | Path | None = None) -> bool:
-    """Whether anything but the YAML's `default` gives `env_id` its n_timesteps for `algo`:
-    the task's `hyperparams[algo]`, the packaged YAML's entry for env_id, or the file at
-    `path` (its `default` or env_id entry)."""
-    tables = [_table(DIRECTORY / f"{algo}.yml").get(env_id, {})]
-    try:
-        tables.append(task_of(env_id).hyperparams.get(algo, {}))
-    except UserError:  # not a Lagrange env: only the files can say
-        pass
-    if path is not None:
-        user = _table(Path(path))
-        tables += [user.get("default", {}), user.get(env_id, {})]
-    return any("n_timesteps" in t for t in tables)
-
-
 def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     """The hyperparameters of `algo` for `env_id` (a fresh dict): the YAML's `default`,
     updated by the task's `hyperparams[algo]`, the YAML's entry for env_id and, if `path`
     is given, that file's `default` and env_id entries. Every value is checked."""
     check_algo_name(algo)
     packaged_path = DIRECTORY / f"{algo}.yml"
-    packaged = _table(packaged_path)
+    packaged = read_table(packaged_path)
     hp = check_entries(packaged.get("default", {}), f"{packaged_path} (default)")
     try:
         task = task_of(env_id)
@@ -322,7 +308,7 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
         hp.update(check_entries(own, f"{env_id}'s task ({algo})"))
     hp.update(check_entries(packaged.get(env_id, {}), f"{packaged_path} ({env_id})"))
     if path is not None:
-        user = _table(Path(path))
+        user = read_table(Path(path))
         for entry in ("default", env_id):
             hp.update(check_entries(user.get(entry, {}), f"{path} ({entry})"))
     return hp

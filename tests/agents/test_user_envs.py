@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from agents import check, evaluate, lqr
-from agents.learning import hparams
+from agents.learning import declared, hparams
 from examples import cart_pole  # noqa: F401  (registers it)
 
 USER_ID = "examples.cart_pole:Examples/CartPole-v0"
@@ -48,21 +48,21 @@ def test_a_user_system_trains_until_solved_within_ten_minutes_unless_a_budget_is
     tmp_path,
 ):
     user = "Examples/CartPole-v0"  # registered by importing examples.cart_pole
-    assert check.seconds_of(user, None, None, None, None) == 600.0  # nothing declared
-    assert check.seconds_of(user, None, 5000, None, None) is None  # --timesteps
-    assert check.seconds_of(user, None, None, 90.0, None) == 90.0  # --budget
+    assert declared.seconds_of(user, None, None, None, None) == 600.0  # nothing declared
+    assert declared.seconds_of(user, None, 5000, None, None) is None  # --timesteps
+    assert declared.seconds_of(user, None, None, 90.0, None) == 90.0  # --budget
     # a built-in task declares its steps; so may a --hyperparams file, for any env
-    assert check.seconds_of("Lagrange/BeadOnRod-v1", None, None, None, None) is None
+    assert declared.seconds_of("Lagrange/BeadOnRod-v1", None, None, None, None) is None
     own = tmp_path / "ppo.yml"
     own.write_text(f"{user}:\n  n_timesteps: 20000\n")
-    assert check.seconds_of(user, "ppo", None, None, own) is None
+    assert declared.seconds_of(user, "ppo", None, None, own) is None
     own.write_text("default:\n  learning_rate: 0.0003\n")  # other settings: still timed
-    assert check.seconds_of(user, "ppo", None, None, own) == 600.0
+    assert declared.seconds_of(user, "ppo", None, None, own) == 600.0
 
 
 @pytest.mark.slow
 def test_the_plain_command_on_a_user_system_trains_until_solved(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(check, "DEFAULT_SECONDS", 20.0)  # 10 minutes, shortened
+    monkeypatch.setattr(declared, "DEFAULT_SECONDS", 20.0)  # 10 minutes, shortened
     argv = [USER_ID, "--episodes", "4", "--out", str(tmp_path), "--no-progress"]
     assert check.main(argv) == 0
     report = (tmp_path / "Examples-CartPole-v0" / "results.md").read_text()
