@@ -24,6 +24,7 @@ from dynamics import wrap
 from . import docs  # noqa: F401  (envs.docs.describe)
 from .env import LagrangianEnv
 from .randomize import Choice, LogUniform, Same, TruncNormal, Uniform
+from .swing_up import swing_up_ppo  # noqa: F401  (envs.swing_up_ppo)
 from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 from .vector import LagrangianVectorEnv
 

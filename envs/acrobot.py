@@ -97,6 +97,7 @@ import numpy as np
 from dynamics import wrap
 
 from . import rendering
+from .swing_up import swing_up_ppo
 from .task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 
 RATE_LIMIT = 8 * np.pi
@@ -193,16 +194,7 @@ TASK_V2 = dataclasses.replace(
         # the folded local optimum (link 2 balanced on a hanging link 1, tip height 0, a
         # quarter of the potential) where swinging costs rate penalty; at 300 none did. A
         # long horizon (gamma 0.998) and exploration (entropy, wide initial std) help too.
-        "ppo": {
-            "n_timesteps": 3_000_000,
-            "n_steps": 512,
-            "gamma": 0.998,
-            "learning_rate": "lin_3.0e-4",
-            "ent_coef": 0.01,
-            "normalize": {"norm_obs": True, "norm_reward": True, "gamma": 0.998},
-            "policy_kwargs": {"net_arch": [64, 64], "log_std_init": 0.5},
-            "handover": {"level": 1000.0, "shaping": 300.0, "verify": 3.0},
-        },
+        "ppo": swing_up_ppo(3_000_000, 0.998, {"level": 1000.0, "shaping": 300.0, "verify": 3.0}),
         # trajectory optimisation + TVLQR (agents.plan): a 4 s swing-up from the hanging start
         "plan": {"horizon": 4.0},
     },

@@ -156,20 +156,12 @@ TASK = envs.Task(
         # acrobot's measured ratio (300 against 500 x 2 for its height term: at a third of
         # it, two seeds of three stayed folded, one link up and one down, where the upright
         # reward is 0 too). gamma 0.995 looks 4 s ahead, past a 3 s swing-up (the plan's
-        # horizon); entropy and a wide initial std keep it swinging until it reaches the set;
-        # rollouts of 512 steps per copy hold a whole episode. n_timesteps also sets how often
-        # a --budget run evaluates (every 30th: 50k steps). At 500k (every 16.7k) a pendubot
+        # horizon); the rest of the settings are the acrobot's (envs.swing_up). n_timesteps
+        # also sets how often a --budget run evaluates (every 30th: 50k steps). At 500k (every 16.7k) a pendubot
         # run evaluated 100, 75, 90, 50 % at 16.7k-66.7k steps: no two in a row at 80 %.
-        "ppo": {
-            "n_timesteps": 1_500_000,
-            "n_steps": 512,
-            "gamma": 0.995,
-            "learning_rate": "lin_3.0e-4",
-            "ent_coef": 0.01,
-            "normalize": {"norm_obs": True, "norm_reward": True, "gamma": 0.995},
-            "policy_kwargs": {"net_arch": [64, 64], "log_std_init": 0.5},
-            "handover": {"level": 400.0, "shaping": 600.0, "verify": 3.0},
-        },
+        "ppo": envs.swing_up_ppo(
+            1_500_000, 0.995, {"level": 400.0, "shaping": 600.0, "verify": 3.0}
+        ),
         "plan": {"horizon": 3.0},
     },
 )
