@@ -205,9 +205,12 @@ class System:
         tableau = method_tableau(method)
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
-        self._m.erk_batch(
-            T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out, BLOCK
-        )
+        m = self._m
+        if X.shape[0] < m.LANES_FROM:  # as erk_batch steps so few rows, without compiling it
+            for r in range(X.shape[0]):
+                m.erk_row(T, X, U, self._p, dt / substeps, substeps, *tableau, out, r)
+        else:
+            m.erk_batch(T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out, BLOCK)
         out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 

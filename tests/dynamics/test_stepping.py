@@ -78,3 +78,14 @@ def test_lane_sin_and_cos_match_libm():
     s, c = np.empty(3), np.empty(3)
     both(bad, s, c)
     assert np.isnan(s).all() and np.isnan(c).all()
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_a_few_rows_step_as_they_do_among_many(method):
+    """`System.step` takes fewer rows than the vector lanes one at a time (`erk_row`,
+    without compiling the lanes' kernels): bit for bit the rows of a large batch."""
+    system, x = random_states("two_link_arm", 2 * BLOCK, seed=14)
+    u = np.random.default_rng(15).normal(size=(len(x), system.n_u))
+    many = system.step(x, u, 0.05, 3, method=method)
+    for rows in (slice(0, 1), slice(5, 8), slice(9, 16)):
+        assert np.array_equal(system.step(x[rows], u[rows], 0.05, 3, method=method), many[rows])
