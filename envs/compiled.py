@@ -204,7 +204,7 @@ def compile_fused(rt, jitted: dict) -> None:
     """Runtime `rt`'s fused step (envs.fused), when every task function is compiled and
     one thread steps the rows; else None (the step of separate calls)."""
     rt._fused = None
-    rt._fused_bound = {}
+    rt._fused_bound = None
     if rt.num_threads > 1 and rt.n > BLOCK:
         return
     if not all(hasattr(f, "py_func") for f in jitted.values()):
@@ -225,18 +225,30 @@ def compile_fused(rt, jitted: dict) -> None:
     rt._fused = fused.build(plan_, functions, types)
 
 
+ACTIONS = "float64, 2-d, any layout, read-only"
+"""The one type the fused step takes its actions as (`actions_type`): the runtime gives it
+float64 (`Runtime.step`), and C or Fortran order, a view or a read-only array all pass as
+they are, so a task's step compiles once, not once per kind of array a caller holds."""
+
+
+def actions_type():
+    """numba's type for `ACTIONS`."""
+    from numba.core import types
+
+    return types.Array(types.float64, 2, "A", readonly=True)
+
+
 def bind_fused(rt, actions: np.ndarray):
-    """Runtime `rt`'s fused step's machine code for arrays like `actions` (compiled or
-    loaded from numba's cache on first use), bound as `bind` does."""
+    """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
+    first use) for float64 actions of any layout (`ACTIONS`), bound as `bind` does."""
     args = (actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
             rt._task_params, -1)  # fmt: skip
     if rt.perturber is not None:  # samples of the applied inputs and the forces
         args += (rt.perturber.applied, rt.perturber.W)
-    rt._fused.compile(tuple(rt._fused.typeof_pyval(a) for a in args))
-    step = bind(rt._fused, args)
-    f = actions.flags
-    rt._fused_bound[(actions.dtype, f.c_contiguous, f.writeable, f.aligned)] = step
-    return step
+    signature = (actions_type(), *(rt._fused.typeof_pyval(a) for a in args[1:]))
+    rt._fused.compile(signature)
+    rt._fused_bound = rt._fused.overloads[signature].entry_point
+    return rt._fused_bound
 
 
 # ---- a new step compiled in the background -----------------------------------------------
@@ -247,31 +259,24 @@ env stepped a few times (a check, a test, a look at a model) never compiles it."
 
 
 def fused_for(rt, actions: np.ndarray):
-    """Runtime `rt`'s fused step bound for arrays like `actions`, or None while it compiles
-    in the background: where the rows step one at a time (`Runtime._row_by_row`) and
-    numba's cache does not have the step, it compiles in a thread of its own, and until it
-    is bound `Runtime.step` takes the step of separate calls; the thread starts at the
-    step after the first `SEPARATE_FIRST`. Those give the same results
-    bit for bit and run only code that the fused step links, compiled here first (the
-    model's `erk_row`; the task's functions and the runtime's kernels are already): a
+    """Runtime `rt`'s fused step, bound, or None while `Runtime.step` takes the step of
+    separate calls: when numba's cache does not have the step, the runtime's first
+    `SEPARATE_FIRST` steps are separate calls, and then the step compiles in a thread of
+    its own while separate calls go on until it is bound. Both give the same results bit
+    for bit, and by then the separate calls have run (so compiled) every kernel they use: a
     first call of a kernel while the thread compiles would wait for numba's compiler lock,
     that is for the whole step. So a new model's first step waits for its integrator, not
     for the fused step (about 2 s of compilation, mostly LLVM re-optimising what it
-    links). A thread that fails leaves its error to the next step, which binds the step
-    itself."""
+    links), and an env stepped a few times never compiles it. A thread that fails leaves
+    its error to the next step, which binds the step itself."""
     pending = rt._fused_pending
     if pending is not None and pending.is_alive():
         return None
-    if pending is not None or not rt._row_by_row or _kernel_compiled(rt._fused):
+    if pending is not None or _kernel_compiled(rt._fused):
         return bind_fused(rt, actions)
     rt._separate_steps += 1
     if rt._separate_steps <= SEPARATE_FIRST:
         return None
-    plant = rt.plant
-    rt._erk_row = warm(rt._erk_row, *rt._erk_row_args(0))
-    warm(apply_actions, actions, plant.input_mid, plant.input_half, plant.actuated, rt.A, rt.U)
-    if len(plant.output_index):  # the model's outputs, which the task functions read
-        rt.rows()
     thread = threading.Thread(target=_bind_quietly, args=(rt, actions), name="fused step")
     rt._fused_pending = thread
     _COMPILING.add(thread)

@@ -87,8 +87,8 @@ class LagrangianEnv(ContractMixin, gym.Env):
     def step(self, action):
         if not self._ready:
             raise RuntimeError("Call reset() before step().")
-        # native float32 and float64 arrays go to the runtime as they are (it reads either;
-        # the compiled step takes no other byte order)
+        # native float32 and float64 arrays go to the runtime as they are (it gives its
+        # compiled step float64, float32's values exactly)
         if type(action) is np.ndarray and action.dtype.char in "fd" and action.dtype.isnative:
             a = action
         else:

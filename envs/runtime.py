@@ -19,8 +19,8 @@ The task's own functions are compiled with numba when numba can type them, and c
 plain Python otherwise (a warning says so once per function; `envs.compiled`). When all
 of them compile and one thread steps the rows, the whole step is one compiled call
 (`envs.fused`), with the same results bit for bit: the per-row arrays are views of a few
-flat buffers for that. A new model's fused step for rows that step one at a time compiles
-in a thread while separate calls take the first steps (`envs.compiled.fused_for`). The
+flat buffers for that. A new task's fused step compiles in a thread after the first steps,
+which separate calls take (`envs.compiled.fused_for`). The
 model's kernels read the store's `model_params`, the task's functions its `task_params`;
 nothing reaches back for a parameter.
 
@@ -245,6 +245,8 @@ class Runtime:
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
         plant = self.plant
+        if actions.dtype != np.float64:  # one type for the compiled step (`compiled.ACTIONS`);
+            actions = actions.astype(np.float64)  # float32's values exactly
         perturbed = ()
         if self.perturber is not None:  # the inputs applied and the pushes (envs.perturb)
             if not np.isfinite(actions).all():
@@ -275,11 +277,9 @@ class Runtime:
         return bool(diverged) or bool(bad)
 
     def _fused_step(self, actions: np.ndarray):
-        """The fused step's machine code for arrays like `actions`, or None while it
-        compiles in the background (`envs.compiled.fused_for`)."""
-        f = actions.flags
-        key = (actions.dtype, f.c_contiguous, f.writeable, f.aligned)
-        step = self._fused_bound.get(key)
+        """The fused step's machine code, or None while it compiles in the background
+        (`envs.compiled.fused_for`)."""
+        step = self._fused_bound
         return compiled.fused_for(self, actions) if step is None else step
 
     def _erk_row_args(self, r: int) -> tuple:

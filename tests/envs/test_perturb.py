@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import envs
+from tests.binding import bound
 from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
@@ -70,7 +71,9 @@ def test_neutral_perturbations_step_bit_for_bit_like_none(env_id, fused):
     plain = gym.make(env_id).unwrapped
     neutral = gym.make(env_id, perturb=NEUTRAL).unwrapped
     assert neutral._rt.perturber is not None and plain._rt.perturber is None
-    if not fused:
+    if fused:
+        bound(neutral)
+    else:
         neutral._rt._fused = None  # the step of separate calls
     actions = _actions(plain, 30)
     for a, b in zip(_rollout(plain, actions, 5), _rollout(neutral, actions, 5)):
@@ -80,7 +83,7 @@ def test_neutral_perturbations_step_bit_for_bit_like_none(env_id, fused):
 def test_neutral_perturbations_change_no_row_of_a_vector_env():
     """Nine rows: the pushed integrator's vector lanes (eight rows and more)."""
     plain, neutral = _vec(ACROBOT, 9), _vec(ACROBOT, 9, perturb=NEUTRAL)
-    assert neutral.unwrapped._rt._fused is not None
+    bound(neutral)
     plain.reset(seed=3), neutral.reset(seed=3)
     for a in _actions(plain, 20):
         for x, y in zip(plain.step(a)[:4], neutral.step(a)[:4]):

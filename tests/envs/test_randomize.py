@@ -13,6 +13,7 @@ import pytest
 
 import envs
 from agents.control.lqr_policy import LQRPolicy
+from tests.binding import bound
 from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
@@ -51,7 +52,9 @@ def test_one_copy_steps_bit_for_bit_like_a_single_env_made_with_its_values(env_i
     name, value = _free_parameter(env_id)
     n, row = 9, 4  # 9 rows: the integrator's vector lanes (8 rows and more)
     vec = _vec(env_id, n, randomize={})
-    if not fused:
+    if fused:
+        bound(vec)
+    else:
         vec.unwrapped._rt._fused = None  # the step of separate calls
     single = gym.make(env_id, **{name: value}).unwrapped
     values = np.full(n, vec.unwrapped.system.parameters[name])

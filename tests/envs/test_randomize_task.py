@@ -17,6 +17,7 @@ from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
 from envs.parameters import constant_inputs
 from envs.randomize import Uniform
+from tests.binding import bound
 
 ARM = "Lagrange/TwoLinkArm-v1"
 DEFAULT = {"Ibar1": (0.05, 0.1)}
@@ -134,7 +135,9 @@ def test_task_functions_read_each_copy_s_own_parameters(fused):
     n, row = 9, 4
     vec = gym.make_vec(ACROBOT, n, vectorization_mode="vector_entry_point", randomize={})
     assert vec.unwrapped._rt.parameters.follows
-    if not fused:
+    if fused:
+        bound(vec)
+    else:
         vec.unwrapped._rt._fused = None
     values = np.full(n, 1.0)
     values[row] = 1.1

@@ -19,6 +19,7 @@ import pytest
 
 import envs
 from envs.randomize import LogUniform, TruncNormal, Uniform
+from tests.binding import bound
 from tests.matrix import FAST, over
 
 DATA = Path(__file__).parent / "data" / "recorded.npz"
@@ -52,6 +53,8 @@ def _vector(env_id, n=5, steps=60, separate=False, **kwargs):
     vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs)
     if separate:
         vec.unwrapped._rt._fused = None  # the step of separate calls
+    else:
+        bound(vec)
     rng = np.random.default_rng(2)
     obs, info = vec.reset(seed=11)
     out = [obs, info["state"], info["energy"]]
