@@ -241,6 +241,7 @@ def test_resets_refuse_what_the_task_cannot_take():
     np.testing.assert_allclose(vec.unwrapped.goal, [[0.5, 1.0], [1.5, -1.0]])
 
 
+@pytest.mark.slow  # docs: builds every env's plant (the bicycle's alone compiles for it)
 def test_docstring_tables_are_current():
     from envs.docs import MODULES, regenerated
 
