@@ -332,3 +332,24 @@ def test_rendering_without_a_display_is_quiet_for_arrays_and_says_so_for_windows
     assert arrays.stderr == ""  # no display opened, nothing printed
     window = run("human")
     assert window.returncode == 0 and "found no display" in window.stderr
+
+
+def test_a_declared_operating_point_is_solved_once_per_goal(monkeypatch):
+    """The arm's operating point is the goal (a dict): agents ask for it at every step, and
+    each distinct goal is solved once, with the same numbers as solving it again."""
+    from envs.plant import Plant
+
+    env = gym.make("Lagrange/TwoLinkArm-v1").unwrapped
+    obs = np.stack([env.reset(seed=s)[0] for s in range(3)])
+    batch = obs[[0, 1, 0, 2, 1]]
+    expected = env.plant.operating_point(env.goal_from_observation(batch),
+                                         env.state_from_observation(batch))  # fmt: skip
+    solved = []
+    solve = Plant.operating_point
+    monkeypatch.setattr(
+        Plant, "operating_point", lambda p, g, x: solved.append(1) or solve(p, g, x)
+    )
+    for _ in range(2):
+        X0, U0 = env.operating_point(batch)
+        assert np.array_equal(X0, expected[0]) and np.array_equal(U0, expected[1])
+    assert len(solved) == 3  # three goals
