@@ -225,27 +225,24 @@ def compile_fused(rt, jitted: dict) -> None:
     rt._fused = fused.build(plan_, functions, types)
 
 
-ACTIONS = "float64, 2-d, any layout, read-only"
-"""The one type the fused step takes its actions as (`actions_type`): the runtime gives it
-float64 (`Runtime.step`), and C or Fortran order, a view or a read-only array all pass as
-they are, so a task's step compiles once, not once per kind of array a caller holds."""
-
-
 def actions_type():
-    """numba's type for `ACTIONS`."""
+    """The one type the fused step takes its actions as: float64, 2-d, any layout,
+    read-only. The runtime gives it float64 (`Runtime.step`), and C or Fortran order, a
+    view or a read-only array all pass as they are, so a task's step compiles once, not
+    once per kind of array a caller holds."""
     from numba.core import types
 
     return types.Array(types.float64, 2, "A", readonly=True)
 
 
-def bind_fused(rt, actions: np.ndarray):
+def bind_fused(rt):
     """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
-    first use) for float64 actions of any layout (`ACTIONS`), bound as `bind` does."""
-    args = (actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
+    first use) for float64 actions of any layout (`actions_type`), bound as `bind` does."""
+    args = (rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
             rt._task_params, -1)  # fmt: skip
     if rt.perturber is not None:  # samples of the applied inputs and the forces
         args += (rt.perturber.applied, rt.perturber.W)
-    signature = (actions_type(), *(rt._fused.typeof_pyval(a) for a in args[1:]))
+    signature = (actions_type(), *(rt._fused.typeof_pyval(a) for a in args))
     rt._fused.compile(signature)
     rt._fused_bound = rt._fused.overloads[signature].entry_point
     return rt._fused_bound
@@ -261,7 +258,7 @@ cart-pole here: 54 and 46 us against 17 and 13), so 0.07 s over these steps, aga
 of CPU to compile the step; a longer run compiles it once, for numba's cache."""
 
 
-def fused_for(rt, actions: np.ndarray):
+def fused_for(rt):
     """Runtime `rt`'s fused step, bound, or None while `Runtime.step` takes the step of
     separate calls: when numba's cache does not have the step, the runtime's first
     `SEPARATE_FIRST` steps are separate calls, and then the step compiles in a thread of
@@ -276,20 +273,20 @@ def fused_for(rt, actions: np.ndarray):
     if pending is not None and pending.is_alive():
         return None
     if pending is not None or _kernel_compiled(rt._fused):
-        return bind_fused(rt, actions)
+        return bind_fused(rt)
     rt._separate_steps += 1
     if rt._separate_steps <= SEPARATE_FIRST:
         return None
-    thread = threading.Thread(target=_bind_quietly, args=(rt, actions), name="fused step")
+    thread = threading.Thread(target=_bind_quietly, args=(rt,), name="fused step")
     rt._fused_pending = thread
     _COMPILING.add(thread)
     thread.start()
     return None
 
 
-def _bind_quietly(rt, actions: np.ndarray) -> None:
+def _bind_quietly(rt) -> None:
     try:
-        bind_fused(rt, actions)
+        bind_fused(rt)
     except Exception:  # noqa: S110 (the next step binds it again, and raises the error)
         pass
     finally:

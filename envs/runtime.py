@@ -245,14 +245,14 @@ class Runtime:
         early-end penalty counts the steps left to `horizon` (None: no time limit, no
         penalty). Returns whether any row diverged."""
         plant = self.plant
-        if actions.dtype != np.float64:  # one type for the compiled step (`compiled.ACTIONS`);
+        if actions.dtype != np.float64:  # one type for the compiled step (`compiled.actions_type`);
             actions = actions.astype(np.float64)  # float32's values exactly
         perturbed = ()
         if self.perturber is not None:  # the inputs applied and the pushes (envs.perturb)
             if not np.isfinite(actions).all():
                 raise NonFiniteActions("actions contain NaN or inf")
             perturbed = self.perturber.before_step(actions, self.T, self.X, self._model_params)
-        step = None if self._fused is None else self._fused_step(actions)
+        step = None if self._fused is None else self._fused_step()
         if step is not None:
             code = step(actions, self._F, self._B, self.steps, self.O, self._fused_C,
                         self._fused_K, self._model_params, self._task_params,
@@ -276,11 +276,11 @@ class Runtime:
             self.perturber.observe(self._obs64, self.O)
         return bool(diverged) or bool(bad)
 
-    def _fused_step(self, actions: np.ndarray):
+    def _fused_step(self):
         """The fused step's machine code, or None while it compiles in the background
         (`envs.compiled.fused_for`)."""
         step = self._fused_bound
-        return compiled.fused_for(self, actions) if step is None else step
+        return compiled.fused_for(self) if step is None else step
 
     def _erk_row_args(self, r: int) -> tuple:
         """The model's `erk_row` arguments that advance row r into `_X_next`."""

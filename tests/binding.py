@@ -9,5 +9,5 @@ def bound(env):
     """`env` (single or vector, wrapped or not) stepping with its fused step from now on."""
     rt = env.unwrapped._rt
     assert rt._fused is not None, "this env has no fused step"
-    compiled.bind_fused(rt, rt.A)
+    compiled.bind_fused(rt)
     return env
