@@ -152,7 +152,14 @@ BODIES = {
 }
 
 
-@pytest.mark.parametrize("case", BODIES)
+# the bicycle is derived and compiled for this case alone in the fast suite (about 6 s of CPU
+# from a cold cache): with -m slow, as every model compiled for one test
+SLOW_BODIES = ("a bicycle frame's product of inertia x 4",)
+
+
+@pytest.mark.parametrize(
+    "case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_BODIES else c for c in BODIES]
+)
 def test_no_impossible_body_is_simulated(case):
     make, error, words = BODIES[case]
     with pytest.raises(error) as info:

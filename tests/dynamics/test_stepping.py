@@ -22,11 +22,11 @@ def test_global_error_falls_at_the_methods_order(method):
     assert 2 ** (order - 1) < errors[0] / errors[1] < 2 ** (order + 1)
 
 
-# the driven bead's threaded kernels (unconstrained, as the arm's) only with -m slow: they
-# are compiled for this test alone (about 5 s of CPU from a cold cache)
+# the arm's threaded kernels by default; the disk's and the driven bead's only with -m slow:
+# they are compiled for this test alone (about 4-5 s of CPU each from a cold cache)
 @pytest.mark.parametrize(
     "name",
-    [pytest.param(n, marks=pytest.mark.slow) if n == "bead_on_driven_rod" else n
+    [n if n == "two_link_arm" else pytest.param(n, marks=pytest.mark.slow)
      for n in SCLERONOMIC],
 )  # fmt: skip
 @pytest.mark.parametrize("method", list(METHODS))

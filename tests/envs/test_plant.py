@@ -12,7 +12,7 @@ import pytest
 
 import dynamics
 import envs
-from envs import arm, bicycle, observation
+from envs import arm, disk, observation
 from envs.plant import Plant
 
 ARM = "Lagrange/TwoLinkArm-v1"
@@ -57,7 +57,7 @@ def test_observed_parameters_are_context_features_of_the_compiled_observation():
     assert context[:, 2].tolist() == [list(plant.system.parameters).index("m2")]  # ... of m2
     assert plant.columns[-1][:3] == ("param m2", 0.5, 2.0)
     assert plant.observation.declared == plant.obs_size - 1
-    derived = Plant.build(bicycle.TASK)
+    derived = Plant.build(disk.TASK)  # speed error, heading error: Derived features
     assert (derived.ops[:, 1] == observation.OP_DERIVED).sum() == len(derived.derived)
 
 

@@ -217,6 +217,7 @@ def test_lqr_keeps_the_nominal_model():
     assert np.array_equal(policy.design(x0, u0).K, reference.design(x0, u0).K)
 
 
+@pytest.mark.slow  # the per-copy threaded kernels, compiled for this test alone (3.4 s of CPU)
 def test_threads_step_per_copy_parameters_as_one_thread_does():
     """Blocks of rows spread over threads (no fused step) read each row's own values."""
     n = 130  # more than one block of 64 rows
