@@ -264,22 +264,10 @@ def project_columns(t, x, p, P, lo):
             x[i, b] = row[i]
 
 
-@njit(cache=True, error_model="numpy")
-def erk_batch(T, X, U, p, P, W, h, substeps, a, w, c, out, block):
-    """`erk_rows` over all rows, `block` rows at a time, on this thread: with the
-    parameters p for every row (P None) or each row's own P (N, n_p) (then p is P[0], for
-    its shape), and the generalised forces W (N, n_q) added to each row's forcing where
-    not None (with P). numba prunes the branches on None, so each form compiles only the
-    kernels it calls."""
-    n = X.shape[0]
-    for lo in range(0, n, block):
-        erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, min(n, lo + block))
-
-
 @njit(cache=True, error_model="numpy", parallel=True)
 def erk_batch_parallel(T, X, U, p, P, h, substeps, a, w, c, out, block):
-    """`erk_batch` (W None) with the blocks spread over numba's threads
-    (numba.set_num_threads): bit for bit the same result."""
+    """The model's `erk_rows` over all rows (W None), `block` rows at a time, the blocks
+    spread over numba's threads (numba.set_num_threads): bit for bit the same result."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
         erk_rows(T, X, U, p, P, None, h, substeps, a, w, c, out, j * block,

@@ -13,7 +13,7 @@ import numpy as np
 from dynamics.cache import keep_numba_cache_true
 from dynamics.system import BLOCK, _kernel_compiled, method_tableau
 
-from . import checks, fused, names
+from . import calls, checks, fused, names
 from .observation import observe
 from .row_kernels import advance, apply_actions, finish
 from .task import Derived
@@ -154,12 +154,12 @@ def compile_functions(rt) -> dict:
         rt._task_params,
     )
     jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
-    calls = {r: names.caller(_entry(jitted[f"_{r}"], sample), *rt._types) for r in functions}
-    term_calls = [calls[r] for r in functions if r.startswith("term_")]
+    callers = {r: names.caller(_entry(jitted[f"_{r}"], sample), *rt._types) for r in functions}
+    term_calls = [callers[r] for r in functions if r.startswith("term_")]
     rt._reward = lambda x, a, g, p: [f(x, a, g, p) for f in term_calls]
-    rt._success = calls["success"]
-    rt._failure = calls.get("failure")
-    rt._derived = [(col, calls[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)]
+    rt._success = callers["success"]
+    rt._failure = callers.get("failure")
+    rt._derived = [(col, callers[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)]
     return jitted
 
 
@@ -178,7 +178,8 @@ def plan(rt):
             ("dt", rt.control_period), ("lowest", rt._lowest)]  # fmt: skip
     whole = [("actuated", plant.actuated), ("ops", plant.ops),
              ("output_index", plant.output_index), ("substeps", rt.substeps),
-             ("block", BLOCK)]  # fmt: skip
+             ("block", BLOCK), ("integrator", 0)]  # fmt: skip
+    # integrator: its address, written by bind_fused (envs.calls)
     real_constants, C = pack(real, np.float64)
     whole_constants, K = pack(whole, np.int64)
     plan = {
@@ -196,8 +197,28 @@ def plan(rt):
         "named": True,  # the task functions read their inputs by name (envs.names)
         "widths": (len(plant.row_names), len(plant.actuated), len(plant.goal_names)),
         "types": [cls.__name__ for cls in rt._types],
+        "integrator": calls.text(integrator(rt)[1]),
     }
+    rt._integrator_at = next(start for name, start, *_ in whole_constants if name == "integrator")
     return plan, C, K
+
+
+def integrator(rt):
+    """(kernel, argument types) of the model's integrator as runtime `rt`'s fused step calls
+    it: `erk_row` one row at a time, or `erk_rows` a block at a time (see envs.fused)."""
+    from numba import typeof
+    from numba.core import types
+
+    module, f8, i8 = rt.system.kernel_module, types.float64, types.int64
+    rows, cols = types.Array(f8, 1, "C"), types.Array(f8, 2, "C")  # views of the buffers
+    params = typeof(rt._model_params)
+    one = params.copy(ndim=1) if rt.parameters.per_row else params  # a row's, or all rows'
+    head, tableau = (rows, cols, cols), (f8, i8, cols, rows, rows, cols)
+    if rt._row_by_row:
+        return module.erk_row, (*head, one, *tableau, i8)
+    shared = types.none if not rt.parameters.per_row else params
+    forces = typeof(rt.perturber.W) if rt._pushed else types.none
+    return module.erk_rows, (*head, one, shared, forces, *tableau, i8, i8)
 
 
 def compile_fused(rt, jitted: dict) -> None:
@@ -211,16 +232,13 @@ def compile_fused(rt, jitted: dict) -> None:
         return
     module = rt.system.kernel_module
     rows = rt.parameters.per_row  # each row's own parameters: the kernels that read them so
-    row_by_row = rt._row_by_row  # then erk_rows is neither compiled nor linked into the step
-    integrator = {"_erk_row": module.erk_row} if row_by_row else {"_erk": module.erk_rows}
     functions = {
         "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
-        **integrator, "_outputs": module.outputs_batch,
-        **jitted,
+        "_outputs": module.outputs_batch, **jitted,
     }  # fmt: skip
     plan_, rt._fused_C, rt._fused_K = plan(rt)
     plan_["perturbed"], plan_["pushed"], plan_["rows"] = rt.perturber is not None, rt._pushed, rows
-    plan_["row_by_row"] = row_by_row
+    plan_["row_by_row"] = rt._row_by_row  # erk_row, one row at a time; else erk_rows
     types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
     rt._fused = fused.build(plan_, functions, types)
 
@@ -238,6 +256,8 @@ def actions_type():
 def bind_fused(rt):
     """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
     first use) for float64 actions of any layout (`actions_type`), bound as `bind` does."""
+    kernel, types = integrator(rt)  # compiled (or loaded) for the step's arguments
+    rt._fused_K[rt._integrator_at] = calls.address(kernel, types)
     args = (rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
             rt._task_params, -1)  # fmt: skip
     if rt.perturber is not None:  # samples of the applied inputs and the forces

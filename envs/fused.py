@@ -27,6 +27,8 @@ from numba.extending import overload
 
 from dynamics import cache
 
+from . import calls
+
 LIBRARIES = ("numpy", "numba", "math", "cmath", "builtins")
 """Top-level packages whose functions are identified by name (their code changes with
 their version, which numba's cache already keys on), not hashed."""
@@ -187,12 +189,13 @@ def source(plan: dict) -> str:
     lines = [
         "from numba import njit",
         "",
+        "from envs.calls import call as _call",
         "from envs.fused import put_column, put_rows",
         "",
         "# Globals set by envs.fused before the first call: the runtime's kernels (_apply,",
-        "# _advance, _observe, _finish), the model's (_erk: erk_rows, _outputs) and the",
-        "# task's (_reward or _term_k, _success, _failure, _derived_k). The module's name",
-        "# hashes all of their code.",
+        "# _advance, _observe, _finish), the model's _outputs and the task's (_reward or",
+        "# _term_k, _success, _failure, _derived_k). The module's name hashes all of their",
+        "# code. The model's integrator is called through its address (K_: integrator).",
         "",
         "",
         "@njit(cache=True, error_model='numpy')",
@@ -215,6 +218,8 @@ def source(plan: dict) -> str:
         ]
     _unpack(lines, plan)
     lines += [
+        "    if integrator == 0:  # its address, which envs.compiled.bind_fused writes",
+        "        raise RuntimeError('the fused step was called before it was bound')",
         "    if not _apply(actions, input_mid, input_half, actuated, A, U):",
         "        return -1",
     ]
@@ -257,17 +262,20 @@ def _integrate_lines(plan: dict, params: str) -> list[str]:
     `params`: the kernels' parameter arguments, one vector for every row, or each row's own
     (then the first row's gives the kernels the vector's shape); pushes add the
     generalised forces W."""
+    signature = repr(plan["integrator"])  # its argument types (envs.calls)
     if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
         one = "model_params[r]" if plan.get("rows") else "model_params"
         return [
             "    for r in range(n):  # the model's erk_row, one row at a time",
-            f"        _erk_row(T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r)",
+            f"        _call(integrator, {signature},",
+            f"              (T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r))",
         ]
     forces = "W" if plan.get("pushed") else "None"
     return [
         "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
-        f"        _erk(T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
-        "             min(n, lo + block))",
+        f"        _call(integrator, {signature},",
+        f"              (T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
+        "               min(n, lo + block)))",
     ]
 
 
@@ -326,7 +334,9 @@ def build(plan: dict, functions: dict, types: dict | None = None):
     """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher)
     and `types` (the named inputs' namedtuple classes, named in the source by their
     field hash), or None when the functions cannot be fingerprinted."""
-    digest = fingerprint(*(functions[k] for k in sorted(functions)), _put_column, _put_rows)
+    digest = fingerprint(
+        *(functions[k] for k in sorted(functions)), _put_column, _put_rows, calls.call._defn
+    )
     if digest is None:
         return None
     body = source(plan)

@@ -7,7 +7,11 @@ import pytest
 import envs
 
 
-@pytest.mark.parametrize("env_id", ["Lagrange/TwoLinkArm-v1", "Lagrange/RollingDisk-v1"])
+# the disk's threaded kernels are compiled for this test alone (4 s of CPU cold): -m slow
+@pytest.mark.parametrize(
+    "env_id",
+    ["Lagrange/TwoLinkArm-v1", pytest.param("Lagrange/RollingDisk-v1", marks=pytest.mark.slow)],
+)
 def test_vector_env_is_bit_identical_on_one_thread_and_many(env_id):
     runs = []
     for threads in (1, 2, 3):
