@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynamics.system import method_tableau
+from dynamics.system import _kernel_compiled, method_tableau
 
 from . import compiled
 from .observation import observe
@@ -42,6 +42,13 @@ from .parameters import ParameterRows
 from .perturb import Perturber
 from .plant import Plant
 from .row_kernels import advance, apply_actions, finish
+
+ONE_BY_ONE = 64
+"""Rows a vector env steps one at a time before its fused step is bound (see `_integrate`):
+for at most 2,000 steps (`compiled.SEPARATE_FIRST`), about 6 us a row more than the lanes
+(the arm: 521 against 146 us a step at 64 rows, so at most 0.8 s over those steps), against
+1.3-2.6 s of CPU to compile the lanes of a model and form in the main thread; the fused
+step's thread compiles them."""
 
 
 class NonFiniteActions(ValueError):
@@ -143,6 +150,12 @@ class Runtime:
         self._fused_pending = None  # the thread compiling the fused step, if one does
         self._separate_steps = 0  # steps taken by separate calls while it was not bound
         compiled.compile_fused(self, jitted)
+        # until the fused step is bound (which compiles the vector-lane kernels), up to
+        # ONE_BY_ONE rows step one at a time too, as the lanes would (`erk_row`), when numba's
+        # cache has no lanes yet: a vector env stepped a few times never compiles them
+        lanes = _kernel_compiled(module.erk_rows)
+        self._one_by_one = (self._fused is not None and not self._pushed
+                            and self.n <= ONE_BY_ONE and not lanes)  # fmt: skip
 
     # pickling: numba dispatchers are rebuilt (from numba's cache) rather than pickled
     def __getstate__(self):
@@ -292,7 +305,7 @@ class Runtime:
     def _integrate(self, perturbed) -> None:
         """The step of separate calls: X_next from X under U, with the pushes' forces."""
         s, args = self.system, (self.control_period, self.substeps, self._X_next, self.integrator)
-        if self._row_by_row:
+        if self._row_by_row or (self._one_by_one and self._fused_bound is None):
             for r in range(self.n):
                 self._erk_row(*self._erk_row_args(r))
         elif self._pushed:

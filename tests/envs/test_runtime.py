@@ -257,3 +257,32 @@ def test_the_plant_gives_the_observation_table_of_the_docstring():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert plant.obs_size == 14
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs"),
+    [("Lagrange/RollingDisk-v1", {}), ("Lagrange/TwoLinkArm-v1", {"randomize": {}})],
+)
+def test_rows_stepped_one_at_a_time_before_the_fused_step_step_as_the_lanes(
+    env_id, kwargs, monkeypatch
+):
+    """A new vector env's rows step one at a time (`erk_row`) until its fused step is bound,
+    so that an env stepped a few times never compiles the lanes: the same results bit for
+    bit (the disk: projected; the arm: each copy's own parameters)."""
+    runs = []
+    for one_by_one in (True, False):
+        vec = gym.make_vec(env_id, 9, vectorization_mode="vector_entry_point", **kwargs)
+        rt = vec.unwrapped._rt
+        rt._fused, rt._one_by_one = None, one_by_one  # the step of separate calls
+        if one_by_one:  # the lanes are never called
+            for name in ("step_unchecked", "step_rows_unchecked"):
+                monkeypatch.setattr(rt.system, name, lambda *a, **k: pytest.fail("lanes"))
+        rng = np.random.default_rng(5)
+        out = [vec.reset(seed=5)[0]]
+        for _ in range(30):
+            a = rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32)
+            out += vec.step(a)[:4]
+        monkeypatch.undo()
+        runs.append(out)
+    for x, y in zip(*runs):
+        assert np.array_equal(x, y)
