@@ -15,11 +15,10 @@ from tests.binding import bound
 from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
-# The bicycle's perturbed kernels are compiled for this check alone (about 16 s of CPU from
-# a cold cache): its rows run with -m slow; every other built-in env keeps it fast.
-# the perturbed steps of a holonomic and a nonholonomic model by default (each model's are
-# compiled for these tests alone); every model with -m slow
-PERTURBED_IDS = over(envs.ENV_IDS, fast=("Lagrange/TwoLinkArm-v1", "Lagrange/RollingDisk-v1"))
+# the arm's perturbed steps by default (each model's pushed lanes are compiled for these
+# tests alone: the disk's 7 s of CPU cold), every model's with -m slow; the disk's perturbed
+# fused step is checked by default against its recording (tests/envs/test_recorded.py)
+PERTURBED_IDS = over(envs.ENV_IDS, fast=("Lagrange/TwoLinkArm-v1",))
 PUSH = {"force": 8.0, "every": 0.3, "duration": 0.1}
 ALL = {"obs_noise": 0.02, "action_noise": 0.3, "motor_k": 0.6, "delay": 2, "push": PUSH}
 NEUTRAL = {

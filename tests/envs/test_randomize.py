@@ -17,12 +17,10 @@ from tests.binding import bound
 from tests.matrix import over
 
 ARM, ACROBOT = "Lagrange/TwoLinkArm-v1", "Lagrange/Acrobot-v2"
-# The bicycle's per-copy kernels are compiled for this test alone (about 20 s of CPU from a
-# cold cache, longer than the rest of the file): its rows run with -m slow. Every other
-# built-in env keeps the check in the fast suite, through the same per-copy kernels.
-# the per-copy steps of a holonomic and a nonholonomic model by default (each model's are
-# compiled for these tests alone); every model with -m slow
-PER_COPY_IDS = over(envs.ENV_IDS, fast=("Lagrange/TwoLinkArm-v1", "Lagrange/RollingDisk-v1"))
+# the arm's per-copy steps by default (each model's per-copy lanes are compiled for these
+# tests alone: the disk's 4 s of CPU cold), every model's with -m slow; the disk's per-copy
+# fused step is checked by default against its recording (tests/envs/test_recorded.py)
+PER_COPY_IDS = over(envs.ENV_IDS, fast=("Lagrange/TwoLinkArm-v1",))
 
 
 def _vec(env_id, n, **kwargs):
