@@ -209,10 +209,9 @@ class LQRPolicy:
         x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
         dx = self.error(x, x0)
         cost = np.empty(len(x))
-        for i in range(len(x)):
-            d = self.design(x0[i], u0[i])
-            e = dx[i, d.linear.index]
-            cost[i] = e @ d.P @ e
+        for rows, d in self._groups(x0, u0):
+            e = np.ascontiguousarray(dx[rows][:, d.linear.index])
+            cost[rows] = (e[:, None, :] @ d.P @ e[:, :, None])[:, 0, 0]  # e' P e, row by row
         return cost
 
     def act(self, x, x0, u0) -> np.ndarray:
@@ -220,10 +219,20 @@ class LQRPolicy:
         x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
         dx = self.error(x, x0)
         a = self.env.input_to_action(u0).astype(np.float64)
-        for i in range(len(x)):
-            d = self.design(x0[i], u0[i])
-            a[i] -= d.K @ dx[i, d.linear.index]
+        for rows, d in self._groups(x0, u0):
+            e = np.ascontiguousarray(dx[rows][:, d.linear.index])
+            a[rows] -= (d.K @ e[:, :, None])[:, :, 0]  # K e, row by row
         return np.clip(a, -1.0, 1.0)
+
+    def _groups(self, x0, u0):
+        """(rows, design) for the rows' operating points: one group where every row has
+        the same (a fixed operating point, the common case), else one per row. The stacked
+        products above do each row's arithmetic as the product of that row alone would
+        (numpy's matmul over a stack of contiguous rows: the same BLAS call per row; a
+        strided copy rounds otherwise), so grouping changes no result."""
+        if len(x0) > 1 and (x0 == x0[0]).all() and (u0 == u0[0]).all():
+            return [(slice(None), self.design(x0[0], u0[0]))]
+        return [(slice(i, i + 1), self.design(x0[i], u0[i])) for i in range(len(x0))]
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         """stable-baselines3's interface: (action, None) for one or a batch of observations."""

@@ -67,7 +67,11 @@ class GymnasiumVecEnv(VecEnv):
         for key, value in info.items():
             if key.startswith("_") or key in ("final_obs", "final_info"):
                 continue
-            mask = info.get(f"_{key}", np.ones(self.num_envs, dtype=bool))
+            mask = info.get(f"_{key}")
+            if mask is None or mask.all():  # every row: split at once (the common case)
+                for row, v in zip(out, _rows(value, self.num_envs)):
+                    row[key] = v
+                continue
             for i in np.flatnonzero(mask):
                 out[i][key] = _row(value, i)
         return out
@@ -91,6 +95,14 @@ class GymnasiumVecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
+
+
+def _rows(value, n: int) -> list:
+    """[_row(value, i) for i in range(n)], the same objects, split by numpy at once."""
+    if isinstance(value, dict):
+        parts = {k: _rows(v, n) for k, v in value.items() if not k.startswith("_")}
+        return [{k: v[i] for k, v in parts.items()} for i in range(n)]
+    return list(value[:n]) if isinstance(value, np.ndarray) else [value[i] for i in range(n)]
 
 
 def _row(value, i: int):

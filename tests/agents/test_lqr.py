@@ -221,6 +221,30 @@ def test_predict_is_batched_and_saturates():
     assert one.dtype == np.float32 and abs(one[0]) == 1.0  # 0.3 rad is far: saturated
 
 
+@pytest.mark.parametrize("goals", ["shared", "each its own"])
+def test_a_batch_acts_and_costs_as_each_row_alone(goals):
+    """Rows sharing an operating point are costed and acted on in one stacked product,
+    with each row's own arithmetic: the same bits as the row alone."""
+    import gymnasium as gym
+
+    env = gym.make("Lagrange/TwoLinkArm-v1")
+    policy = lqr.LQRPolicy(env)
+    rng = np.random.default_rng(4)
+    x0, u0 = env.unwrapped.operating_point()
+    n = 9
+    x = x0 + rng.normal(scale=[0.5, 0.5, 2.0, 2.0], size=(n, 4)) * rng.uniform(1e-3, 3, (n, 1))
+    X0, U0 = np.tile(x0, (n, 1)), np.tile(u0, (n, 1))
+    if goals == "each its own":  # other points to regulate about: a design per row
+        X0[:, :2] += rng.uniform(-0.5, 0.5, (n, 2))
+    alone_cost = np.array([policy.cost_to_go(x[i], X0[i], U0[i])[0] for i in range(n)])
+    alone_act = np.stack([policy.act(x[i], X0[i], U0[i])[0] for i in range(n)])
+    assert np.array_equal(policy.cost_to_go(x, X0, U0), alone_cost)
+    assert np.array_equal(policy.act(x, X0, U0), alone_act)
+    assert len(policy._groups(X0, U0)) == (1 if goals == "shared" else n)
+    d, dx = policy.design(X0[0], U0[0]), policy.error(x, X0)
+    assert alone_cost[0] == dx[0, d.linear.index] @ d.P @ dx[0, d.linear.index]  # as before
+
+
 def test_policy_acts_on_the_goal_in_the_observation():
     import gymnasium as gym
 
