@@ -66,3 +66,23 @@ def test_a_step_without_the_integrator_s_address_refuses_to_run():
     with pytest.raises(RuntimeError, match="called before it was bound"):
         rt._fused_bound(actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, K,
                         rt._model_params, rt._task_params, -1)  # fmt: skip
+
+
+def test_a_copied_env_binds_its_own_address():
+    """A pickled (or spawned) env rebuilds its step and writes the integrator's address
+    when it is bound again; a deep copy too: neither steps through a stale one."""
+    import copy
+    import pickle
+
+    vec = gym.make_vec("Lagrange/TwoLinkArm-v1", 9, vectorization_mode="vector_entry_point")
+    bound(vec).reset(seed=2)
+    a = np.full(vec.action_space.shape, 0.3, np.float32)
+    vec.step(a)
+    for twin in (pickle.loads(pickle.dumps(vec)), copy.deepcopy(vec)):
+        rt = twin.unwrapped._rt
+        assert rt._fused_bound is None and rt._fused_K[rt._integrator_at] == 0
+        bound(twin)
+        assert rt._fused_K[rt._integrator_at] == vec.unwrapped._rt._fused_K[rt._integrator_at]
+    ref = copy.deepcopy(vec)
+    for _ in range(5):
+        assert np.array_equal(vec.step(a)[0], bound(ref).step(a)[0])
