@@ -210,7 +210,7 @@ class System:
             for r in range(X.shape[0]):
                 m.erk_row(T, X, U, self._p, dt / substeps, substeps, *tableau, out, r)
         else:
-            self._blocks(T, X, U, self._p, None, None, dt / substeps, substeps, tableau, out)
+            self._blocks(T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out)
         out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 
@@ -238,7 +238,7 @@ class System:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
             self._m.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out, BLOCK)
         else:
-            self._blocks(T, X, U, self._p, None, None, h, substeps, (a, w, c), out)
+            self._blocks(T, X, U, self._p, None, None, h, substeps, a, w, c, out)
 
     def step_rows_unchecked(
         self, T, X, U, P, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
@@ -253,7 +253,7 @@ class System:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
             self._m.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK)
         else:
-            self._blocks(T, X, U, P[0], P, None, h, substeps, (a, w, c), out)
+            self._blocks(T, X, U, P[0], P, None, h, substeps, a, w, c, out)
 
     def step_pushed_unchecked(
         self, T, X, U, P, W, dt: float, substeps: int, out: np.ndarray, method: str = "rk4"
@@ -262,15 +262,18 @@ class System:
         to the equations' forcing and held over dt (external pushes, see `point_forces`);
         W = 0 steps bit for bit as `step_rows_unchecked`. Unchecked."""
         tableau = method_tableau(method)
-        self._blocks(T, X, U, P[0], P, W, dt / substeps, substeps, tableau, out)
+        self._blocks(T, X, U, P[0], P, W, dt / substeps, substeps, *tableau, out)
 
-    def _blocks(self, T, X, U, p, P, W, h, substeps, tableau, out) -> None:
+    def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out) -> None:
         """The model's `erk_rows` over all rows, BLOCK rows a call: a loop here rather than
         a compiled one, whose compilation re-optimised all of erk_rows (0.6-1 s a model)
         for a few microseconds a step saved."""
         erk_rows, n = self._m.erk_rows, X.shape[0]
+        if n <= BLOCK:  # one call: a single state, an env's rows
+            erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, 0, n)
+            return
         for lo in range(0, n, BLOCK):
-            erk_rows(T, X, U, p, P, W, h, substeps, *tableau, out, lo, min(n, lo + BLOCK))
+            erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, min(n, lo + BLOCK))
 
     def point_forces(self, x, point: str, force, t=0.0) -> np.ndarray:
         """The generalised forces (..., n_q) of `force` (..., 2 or 3 components, in the basis
