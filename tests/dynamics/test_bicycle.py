@@ -2,8 +2,8 @@
 A 463: their published matrices, self-stable speeds and eigenvalues (section 5, Table 2), and
 their closed-form expressions for the matrices (Appendix A) at non-default parameters.
 
-All of it needs the derived whipple_bicycle (cold: about 6.5 s of CPU, which these tests and
-the bicycle env's fast tests share). The published matrices, and their following the
+All of it needs the derived whipple_bicycle (cold: about 6.5 s of CPU, which these tests
+pay: the bicycle env's tests run with -m slow). The published matrices, and their following the
 parameters as the paper's Appendix A predicts, are in the fast suite: the linearisations run
 without compiling (a second).
 The rest runs with -m slow (the speeds, eigenvalues, nonlinear simulations and the plot: a

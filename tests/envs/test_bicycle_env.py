@@ -15,6 +15,10 @@ from dynamics.bicycle import reduced_linearization
 from envs import bicycle
 from envs.checks import Unsupported
 
+# the bicycle's kernels are compiled for this file alone (its first test: 13.5 s of CPU from a
+# cold cache): with -m slow, as every model compiled for one test (CI runs them); the fast
+# suite keeps its derivation and the paper's matrices (tests/dynamics/test_bicycle.py)
+pytestmark = pytest.mark.slow
 ENV_ID = "Lagrange/Bicycle-v0"
 
 
@@ -36,9 +40,6 @@ def test_reset_puts_the_front_wheel_on_the_ground_and_the_rates_on_the_constrain
         assert out["speed"] == pytest.approx(info["goal"][0], rel=1e-12)
 
 
-# the two episodes step the bicycle, whose kernels no other fast test compiles (about 25 s
-# of CPU from a cold cache): with -m slow, as every model compiled for one test
-@pytest.mark.slow
 def test_the_constraints_hold_over_an_episode():
     env = gym.make(ENV_ID)
     policy = BicycleLQRPolicy(env)
@@ -81,7 +82,6 @@ def test_the_heuristic_is_scheduled_on_the_commanded_speed():
         assert np.abs(np.linalg.eigvals(Ad - Bd @ policy.gain(v))).max() < 1.0
 
 
-@pytest.mark.slow
 def test_heuristic_rides_from_the_start_region():
     # 100 seeded episodes over v* in [2, 6] m/s from the documented start region (one
     # vector env, under a second warm); the bar is 95 %, measured 100 %
