@@ -102,7 +102,7 @@ def _rows(value, n: int) -> list:
     if isinstance(value, dict):
         parts = {k: _rows(v, n) for k, v in value.items() if not k.startswith("_")}
         return [{k: v[i] for k, v in parts.items()} for i in range(n)]
-    return list(value[:n]) if isinstance(value, np.ndarray) else [value[i] for i in range(n)]
+    return list(value) if isinstance(value, np.ndarray) else [value[i] for i in range(n)]
 
 
 def _row(value, i: int):
