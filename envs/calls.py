@@ -1,18 +1,21 @@
 """A compiled kernel called through its address, so that the caller does not link it.
 
 numba links every jitted function a function calls into the caller's module and optimises
-the whole module again: the fused step (envs.fused) re-optimised the model's integrator at
-every compilation, once per task and form. Called through its address, the integrator is
-compiled once per model and argument types, and each step compiles only the rest (measured
-here: the disk's step 2.1-2.5 s of CPU against 2.9 s, the arm's 1.8-1.9 against 2.1-2.3;
-the step runs as fast: the integrator was not inlined into it before either).
+the whole module again: the fused step (envs.fused) re-optimised the model's integrator,
+its outputs, the runtime's kernels and the task's functions at every compilation, once
+per task and form. Called through their addresses, each is compiled once for its argument
+types (the runtime's kernels once per machine, in numba's cache), and each step compiles
+only its own code (measured here, CPU: the crank-slider's step 2.7 s -> 1.7 s, its LLVM
+module 12,500 -> 3,900 lines; the integrator alone had taken the disk's from 2.9 to
+2.1-2.5 s).
 
 `address(kernel, signature)` compiles (or loads) the kernel for exactly `signature` and
 gives the address of its machine code; the step reads it from its integer constants at
-run time, so numba's disk cache of the step holds no address. `call(address, expected,
-arguments)` calls it with the tuple `arguments`, whose types must be `expected` (the
-signature's text, written into the step's source): a step whose arguments differ does not
-compile, rather than calling code compiled for other types.
+run time, so numba's disk cache of the step holds no address. `call(address, label,
+arguments)` calls it with the tuple `arguments`, whose types must be those `label` (the
+kernel's name and signature, written into the step's source) names, and gives its result:
+a step whose arguments differ does not compile, rather than calling code compiled for
+other types.
 """
 
 from __future__ import annotations
@@ -22,10 +25,20 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
+_RETURNS: dict = {}
+"""label -> return type of every kernel `address` gave an address of: what `call` types
+its result as (a step compiles in the process that gave the addresses it calls)."""
+
 
 def text(signature) -> str:
     """The text `call` compares the arguments' types with."""
     return ", ".join(str(t) for t in signature)
+
+
+def label(kernel, signature) -> str:
+    """`kernel`'s name and argument types, as a step's source names the call."""
+    fn = getattr(kernel, "py_func", kernel)
+    return f"{fn.__module__}.{fn.__qualname__}({text(signature)})"
 
 
 def address(kernel, signature) -> int:
@@ -34,33 +47,36 @@ def address(kernel, signature) -> int:
     signature = tuple(signature)
     kernel.compile(signature)
     result = kernel.overloads[signature]
+    _RETURNS[label(kernel, signature)] = result.signature.return_type
     return result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
 
 
 @intrinsic
 def call(typingctx, where, expected, arguments):
-    """Call the kernel at address `where` (int64, from `address`) with the tuple
-    `arguments` (the kernel returns nothing); `expected`: `text` of its signature."""
+    """The result of the kernel at address `where` (int64, from `address`) called with the
+    tuple `arguments`; `expected`: its `label`, a string literal."""
     if not isinstance(where, types.Integer) or not isinstance(arguments, types.BaseTuple):
         return None
     if not isinstance(expected, types.StringLiteral):
         raise TypingError("call: the expected signature must be a string literal")
+    name = expected.literal_value
     given = tuple(types.unliteral(t) for t in arguments)
-    if text(given) != expected.literal_value:
-        raise TypingError(
-            f"call: arguments ({text(given)}) are not the kernel's ({expected.literal_value})"
-        )
+    if not name.endswith(f"({text(given)})"):
+        raise TypingError(f"call: arguments ({text(given)}) are not those of {name}")
+    returns = _RETURNS.get(name)
+    if returns is None:
+        raise TypingError(f"call: no address was taken of {name} (calls.address)")
 
     def codegen(context, builder, signature, args):
-        fnty = context.call_conv.get_function_type(types.none, given)
+        fnty = context.call_conv.get_function_type(returns, given)
         fn = builder.inttoptr(args[0], fnty.as_pointer())
         values = [
             context.cast(builder, v, t, u)
             for v, t, u in zip(cgutils.unpack_tuple(builder, args[2]), arguments, given)
         ]
-        status, _ = context.call_conv.call_function(builder, fn, types.none, given, values)
+        status, value = context.call_conv.call_function(builder, fn, returns, given, values)
         with cgutils.if_unlikely(builder, status.is_error):
             context.call_conv.return_status_propagate(builder, status)
-        return context.get_dummy_value()
+        return value if returns != types.none else context.get_dummy_value()
 
-    return types.none(where, expected, arguments), codegen
+    return returns(where, expected, arguments), codegen

@@ -163,8 +163,11 @@ def compile_functions(rt) -> dict:
     return jitted
 
 
-def plan(rt):
-    """(plan, constants as float64, constants as int64) of runtime `rt`'s fused step."""
+def plan(rt, functions: dict):
+    """(plan, constants as float64, constants as int64) of runtime `rt`'s fused step, which
+    calls `functions` (role -> kernel) and the model's integrator through their addresses:
+    `rt._calls` lists (slot in the int64 constants, kernel, argument types) for
+    `bind_fused`."""
     plant, s = rt.plant, rt.system
     a, w, c = method_tableau(rt.integrator)
     # the generated step names each array as the runtime does, less the underscore
@@ -176,10 +179,11 @@ def plan(rt):
             ("obs_high", plant.obs_high), ("term_low", plant.term_low),
             ("term_high", plant.term_high), ("ta", a), ("tw", w), ("tc", c), ("h", h),
             ("dt", rt.control_period), ("lowest", rt._lowest)]  # fmt: skip
+    roles = ["integrator", *functions]
     whole = [("actuated", plant.actuated), ("ops", plant.ops),
              ("output_index", plant.output_index), ("substeps", rt.substeps),
-             ("block", BLOCK), ("integrator", 0)]  # fmt: skip
-    # integrator: its address, written by bind_fused (envs.calls)
+             ("block", BLOCK), ("addresses", np.zeros(len(roles)))]  # fmt: skip
+    # addresses: of the kernels the step calls, written by bind_fused (envs.calls)
     real_constants, C = pack(real, np.float64)
     whole_constants, K = pack(whole, np.int64)
     plan = {
@@ -194,13 +198,54 @@ def plan(rt):
         "derived": [col for col, _ in plant.derived],
         "n_terms": len(plant.task.terms),
         "failure": plant.task.failure is not None,
-        "named": True,  # the task functions read their inputs by name (envs.names)
         "widths": (len(plant.row_names), len(plant.actuated), len(plant.goal_names)),
         "types": [cls.__name__ for cls in rt._types],
-        "integrator": calls.text(integrator(rt)[1]),
+        "perturbed": rt.perturber is not None,
+        "pushed": rt._pushed,
+        "rows": rt.parameters.per_row,  # each row's own parameters
+        "row_by_row": rt._row_by_row,  # erk_row, one row at a time; else erk_rows
     }
-    rt._integrator_at = next(start for name, start, *_ in whole_constants if name == "integrator")
+    at = next(start for name, start, *_ in whole_constants if name == "addresses")
+    kinds = variable_types(rt, plan)
+    rt._calls = [(at, *integrator(rt))]
+    for role in functions:
+        rt._calls.append((at + len(rt._calls), functions[role],
+                          tuple(kinds[v] for v in fused.arguments(role))))  # fmt: skip
+    plan["calls"] = {
+        role: (slot - at, calls.label(kernel, types))
+        for role, (slot, kernel, types) in zip(roles, rt._calls)
+    }
     return plan, C, K
+
+
+def variable_types(rt, plan: dict) -> dict:
+    """The numba type of each variable of the generated step that a kernel takes: the
+    runtime's arrays as views of the flat buffers (contiguous), the constants, the step's
+    arguments and the named inputs (envs.fused.source)."""
+    from numba import typeof
+    from numba.core import types
+
+    f8, i8 = types.float64, types.int64
+    kinds = {
+        "actions": actions_type(), "steps": typeof(rt.steps), "O": typeof(rt.O),
+        "model_params": typeof(rt._model_params), "task_params": typeof(rt._task_params),
+        "horizon": i8,
+    }  # fmt: skip
+    for name, _, width in plan["floats"]:
+        kinds[fused.RENAMED.get(name, name)] = types.Array(f8, 1 if width is None else 2, "C")
+    for name, _ in plan["bools"]:
+        kinds[name] = types.Array(types.boolean, 1, "C")
+    for name, _, _, shape in plan["constants"]:
+        dtype = i8 if name in plan["integer_constants"] else f8
+        kinds[name] = dtype if shape is None else types.Array(dtype, len(shape), "C")
+    params = kinds["model_params"]
+    one = params.copy(ndim=1) if plan["rows"] else params
+    kinds.update(one_params=one, row_params=params if plan["rows"] else types.none)
+    kinds["x"] = kinds["rows_x" if plan["outputs"] else "X"]
+    for var, cls, rows in zip(("xs", "as_", "gs"), rt._types, (kinds["x"], rt.A, rt.G)):
+        width = rows.shape[1] if isinstance(rows, np.ndarray) else len(cls._fields)
+        kinds[var] = _as_fused(typeof(names.columns(cls, np.zeros((1, width)))))
+    return kinds
 
 
 def integrator(rt):
@@ -230,15 +275,11 @@ def compile_fused(rt, jitted: dict) -> None:
         return
     if not all(hasattr(f, "py_func") for f in jitted.values()):
         return
-    module = rt.system.kernel_module
-    rows = rt.parameters.per_row  # each row's own parameters: the kernels that read them so
-    functions = {
-        "_apply": apply_actions, "_advance": advance, "_observe": observe, "_finish": finish,
-        "_outputs": module.outputs_batch, **jitted,
-    }  # fmt: skip
-    plan_, rt._fused_C, rt._fused_K = plan(rt)
-    plan_["perturbed"], plan_["pushed"], plan_["rows"] = rt.perturber is not None, rt._pushed, rows
-    plan_["row_by_row"] = rt._row_by_row  # erk_row, one row at a time; else erk_rows
+    functions = {"_apply": apply_actions, "_advance": advance}
+    if len(rt.plant.output_index):
+        functions["_outputs"] = rt.system.kernel_module.outputs_batch
+    functions.update(_observe=observe, **jitted, _finish=finish)
+    plan_, rt._fused_C, rt._fused_K = plan(rt, functions)
     types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
     rt._fused = fused.build(plan_, functions, types)
 
@@ -256,8 +297,8 @@ def actions_type():
 def bind_fused(rt):
     """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
     first use) for float64 actions of any layout (`actions_type`), bound as `bind` does."""
-    kernel, types = integrator(rt)  # compiled (or loaded) for the step's arguments
-    rt._fused_K[rt._integrator_at] = calls.address(kernel, types)
+    for slot, kernel, types in rt._calls:  # compiled (or loaded) for the step's arguments
+        rt._fused_K[slot] = calls.address(kernel, types)
     args = (rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
             rt._task_params, -1)  # fmt: skip
     if rt.perturber is not None:  # samples of the applied inputs and the forces

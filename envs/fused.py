@@ -4,9 +4,10 @@ The runtime's step is a chain of compiled pieces (clip and scale the actions, in
 check divergence, the observation, the task's reward, success and failure, the results)
 that each cost a Python call, argument unboxing and boxed results: for the single env,
 more than the integration itself. Here the chain is written out as the source of one
-numba function, in a generated module of the model cache, whose globals are the pieces
-themselves; the runtime's arrays are views of a few flat buffers, so the call takes ten
-arguments whatever the task.
+numba function, in a generated module of the model cache, that calls each piece through
+its machine code's address (envs.calls: compiled once for its argument types, not
+linked and optimised again into every task's and form's step); the runtime's arrays are
+views of a few flat buffers, so the call takes ten arguments whatever the task.
 
 numba caches that function's machine code on disk but keys it only on its own source,
 not on the functions it calls. So the module's name hashes the source of everything it
@@ -19,7 +20,9 @@ keeps the step of separate calls (the same results bit for bit).
 from __future__ import annotations
 
 import hashlib
+import re
 import types
+from pathlib import Path
 
 import numpy as np
 from numba import types as numba_types
@@ -29,6 +32,8 @@ from dynamics import cache
 
 from . import calls
 
+_CALLS_KEY = hashlib.sha256(Path(calls.__file__).read_bytes()).hexdigest()
+"""envs.calls's code, which the step's machine code inlines, in the step's key."""
 LIBRARIES = ("numpy", "numba", "math", "cmath", "builtins")
 """Top-level packages whose functions are identified by name (their code changes with
 their version, which numba's cache already keys on), not hashed."""
@@ -192,10 +197,10 @@ def source(plan: dict) -> str:
         "from envs.calls import call as _call",
         "from envs.fused import put_column, put_rows",
         "",
-        "# Globals set by envs.fused before the first call: the runtime's kernels (_apply,",
-        "# _advance, _observe, _finish), the model's _outputs and the task's (_reward or",
-        "# _term_k, _success, _failure, _derived_k). The module's name hashes all of their",
-        "# code. The model's integrator is called through its address (K_: integrator).",
+        "# Every kernel is called through its address (envs.calls), from K_'s `addresses`:",
+        "# the model's integrator and _outputs, the runtime's _apply, _advance, _observe and",
+        "# _finish, the task's _term_k, _success, _failure and _derived_k. The module's name",
+        "# hashes all of their code (envs.fused.build).",
         "",
         "",
         "@njit(cache=True, error_model='numpy')",
@@ -216,11 +221,18 @@ def source(plan: dict) -> str:
             "    (N, n_q) are added to the forcing (model_params: each row's parameters;",
             '    task_params: the record the task\'s functions read)."""',
         ]
-    _unpack(lines, plan)
+    head, lines = lines, []
     lines += [
-        "    if integrator == 0:  # its address, which envs.compiled.bind_fused writes",
-        "        raise RuntimeError('the fused step was called before it was bound')",
-        "    if not _apply(actions, input_mid, input_half, actuated, A, U):",
+        "    for k in range(addresses.shape[0]):  # written by envs.compiled.bind_fused",
+        "        if addresses[k] == 0:",
+        "            raise RuntimeError('the fused step was called before it was bound')",
+    ]
+    if plan.get("rows"):  # each row's own parameters: the kernels take the first row's too
+        lines += ["    one_params = model_params[0]", "    row_params = model_params"]
+    else:
+        lines += ["    one_params = model_params", "    row_params = None"]
+    lines += [
+        f"    if not {_invoke(plan, '_apply')}:",
         "        return -1",
     ]
     if plan.get("perturbed"):
@@ -229,15 +241,11 @@ def source(plan: dict) -> str:
             "        for j in range(actuated.shape[0]):",
             "            U[b, actuated[j]] = applied[b, j]",
         ]
-    params = "model_params[0], model_params" if plan.get("rows") else "model_params, None"
-    lines += _integrate_lines(plan, params)
-    lines += [
-        "    any_diverged = _advance(X, X_next, limits, diverged, T, dt, steps, horizon,",
-        "                            steps_left)",
-    ]
+    lines += _integrate_lines(plan)
+    lines.append(f"    any_diverged = {_invoke(plan, '_advance')}")
     if plan["outputs"]:
         lines += [
-            f"    _outputs(T, X, U, {params}, Y)",
+            f"    {_invoke(plan, '_outputs')}",
             "    for b in range(n):",
             f"        for i in range({plan['n_x']}):",
             "            rows_x[b, i] = X[b, i]",
@@ -249,44 +257,72 @@ def source(plan: dict) -> str:
         lines.append("    x = X")
     lines += _task_lines(plan)
     lines += [
-        "    bad = _finish(terms, term_low, term_high, failed, diverged, steps_left, lowest, R,",
-        "                  terminated, success, obs64, obs_low, O)",
+        f"    bad = {_invoke(plan, '_finish')}",
         "    return 1 if any_diverged or bad else 0",
         "",
     ]
-    return "\n".join(lines)
+    used = set(re.findall(r"[A-Za-z_]\w*", "\n".join(lines)))
+    _unpack(head, plan, used)
+    return "\n".join(head + lines)
 
 
-def _integrate_lines(plan: dict, params: str) -> list[str]:
-    """The lines that advance every row one control period with the model's integrator.
-    `params`: the kernels' parameter arguments, one vector for every row, or each row's own
-    (then the first row's gives the kernels the vector's shape); pushes add the
-    generalised forces W."""
-    signature = repr(plan["integrator"])  # its argument types (envs.calls)
+ARGUMENTS = {
+    "_apply": "actions, input_mid, input_half, actuated, A, U",
+    "_advance": "X, X_next, limits, diverged, T, dt, steps, horizon, steps_left",
+    "_outputs": "T, X, U, one_params, row_params, Y",
+    "_observe": "x, G, ops, obs_low, obs_high, obs64",
+    "_finish": "terms, term_low, term_high, failed, diverged, steps_left, lowest, R, "
+    "terminated, success, obs64, obs_low, O",
+}
+"""The arguments of each kernel the step calls; the task's functions take `TASK_ARGUMENTS`."""
+TASK_ARGUMENTS = "xs, as_, gs, task_params"
+
+
+def arguments(role: str) -> list[str]:
+    """The step's variables that kernel `role` is called with."""
+    return ARGUMENTS.get(role, TASK_ARGUMENTS).split(", ")
+
+
+def _invoke(plan: dict, role: str, args: str | None = None) -> str:
+    """The call of kernel `role` through its address (plan["calls"]: role -> (slot, label))."""
+    slot, name = plan["calls"][role]
+    args = ", ".join(arguments(role)) if args is None else args
+    return f"_call(addresses[{slot}], {name!r}, ({args},))"
+
+
+def _integrate_lines(plan: dict) -> list[str]:
+    """The lines that advance every row one control period with the model's integrator:
+    parameters one vector for every row, or each row's own (then the first row's gives the
+    kernels the vector's shape); pushes add the generalised forces W."""
     if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
         one = "model_params[r]" if plan.get("rows") else "model_params"
+        args = f"T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r"
         return [
             "    for r in range(n):  # the model's erk_row, one row at a time",
-            f"        _call(integrator, {signature},",
-            f"              (T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r))",
+            f"        {_invoke(plan, 'integrator', args)}",
         ]
     forces = "W" if plan.get("pushed") else "None"
+    args = (f"T, X, U, one_params, row_params, {forces}, h, substeps, ta, tw, tc, X_next, lo, "
+            "min(n, lo + block)")  # fmt: skip
     return [
         "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
-        f"        _call(integrator, {signature},",
-        f"              (T, X, U, {params}, {forces}, h, substeps, ta, tw, tc, X_next, lo,",
-        "               min(n, lo + block)))",
+        f"        {_invoke(plan, 'integrator', args)}",
     ]
 
 
-def _unpack(lines: list[str], plan: dict) -> None:
+def _unpack(lines: list[str], plan: dict, used: set[str]) -> None:
     """Append the lines that name the runtime's arrays and constants as views of the flat
-    buffers F_ (floats), B_ (booleans), C_ (real constants) and K_ (integer constants)."""
+    buffers F_ (floats), B_ (booleans), C_ (real constants) and K_ (integer constants), of
+    those the step `used` (each view costs the step's compilation some code)."""
     for name, start, width in plan["floats"]:
-        _segment(lines, name, "F_", start, width)
+        if RENAMED.get(name, name) in used:
+            _segment(lines, name, "F_", start, width)
     for name, start in plan["bools"]:
-        _segment(lines, name, "B_", start, None)
+        if name in used:
+            _segment(lines, name, "B_", start, None)
     for name, start, length, shape in plan["constants"]:
+        if name not in used:
+            continue
         buf = "K_" if name in plan["integer_constants"] else "C_"
         if shape is None:
             lines.append(f"    {name} = {buf}[{start}]")
@@ -297,51 +333,41 @@ def _unpack(lines: list[str], plan: dict) -> None:
 
 
 def _task_lines(plan: dict) -> list[str]:
-    """The generated step's calls of the task's functions: observation, reward terms,
-    success and failure."""
-    lines = []
-    args = "x, A, G, task_params"
-    if plan["named"]:  # the task functions read their inputs by name (envs.names)
-        lines.append(f"    # named inputs: {', '.join(plan['types'])}")
-        for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
-                                        ("x", "A", "G"), plan["widths"]):  # fmt: skip
-            cols = ", ".join(f"{src}[:, {i}]" for i in range(width))
-            lines.append(f"    {var} = {cls}({cols})")
-        args = "xs, as_, gs, task_params"
-    lines.append("    _observe(x, G, ops, obs_low, obs_high, obs64)")
+    """The generated step's calls of the task's functions, which read their inputs by name
+    (envs.names): observation, reward terms, success and failure."""
+    lines = [f"    # named inputs: {', '.join(plan['types'])}"]
+    for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
+                                    ("x", "A", "G"), plan["widths"]):  # fmt: skip
+        cols = ", ".join(f"{src}[:, {i}]" for i in range(width))
+        lines.append(f"    {var} = {cls}({cols})")
+    lines.append(f"    {_invoke(plan, '_observe')}")
     for k, col in enumerate(plan["derived"]):
-        lines.append(f"    put_column(obs64, {col}, _derived_{k}({args}))")
+        lines.append(f"    put_column(obs64, {col}, {_invoke(plan, f'_derived_{k}')})")
     if plan["derived"]:
         lines += [
             "    for b in range(n):",
             f"        for j in range({plan['n_obs']}):",
             "            obs64[b, j] = min(max(obs64[b, j], obs_low[j]), obs_high[j])",
         ]
-    if plan["named"]:
-        for k in range(plan["n_terms"]):
-            lines.append(f"    put_column(terms, {k}, _term_{k}({args}))")
-    else:
-        lines.append(f"    values = _reward({args})")
-        for k in range(plan["n_terms"]):
-            lines.append(f"    put_column(terms, {k}, values[{k}])")
-    lines.append(f"    put_rows(success, _success({args}))")
+    for k in range(plan["n_terms"]):
+        lines.append(f"    put_column(terms, {k}, {_invoke(plan, f'_term_{k}')})")
+    lines.append(f"    put_rows(success, {_invoke(plan, '_success')})")
     if plan["failure"]:
-        lines.append(f"    put_rows(failed, _failure({args}))")
+        lines.append(f"    put_rows(failed, {_invoke(plan, '_failure')})")
     return lines
 
 
 def build(plan: dict, functions: dict, types: dict | None = None):
-    """The compiled step for `plan`, its globals `functions` (name -> numba dispatcher)
-    and `types` (the named inputs' namedtuple classes, named in the source by their
-    field hash), or None when the functions cannot be fingerprinted."""
-    digest = fingerprint(
-        *(functions[k] for k in sorted(functions)), _put_column, _put_rows, calls.call._defn
-    )
+    """The compiled step for `plan`, which calls `functions` (name -> numba dispatcher)
+    through their addresses and whose globals are `types` (the named inputs' namedtuple
+    classes, named in the source by their field hash), or None when the functions cannot
+    be fingerprinted."""
+    digest = fingerprint(*(functions[k] for k in sorted(functions)), _put_column, _put_rows)
     if digest is None:
         return None
     body = source(plan)
-    key = hashlib.sha256(f"{plan['model_key']} {digest}\n{body}".encode()).hexdigest()
+    text = f"{plan['model_key']} {digest} {_CALLS_KEY}\n{body}"
+    key = hashlib.sha256(text.encode()).hexdigest()
     module = cache.load("step", key, f"KEY = {key!r}\n{body}")
-    module.__dict__.update(functions)
     module.__dict__.update(types or {})
     return module.step

@@ -161,9 +161,9 @@ class Runtime:
     def __getstate__(self):
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
-                  "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_energy", "_types",
-                  "_E0", "_model_params", "_task_params", "_p_shared", "_P", "_erk_row",
-                  "_fused_pending"):  # fmt: skip
+                  "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
+                  "_energy", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
+                  "_P", "_erk_row", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)

@@ -1,7 +1,9 @@
 """A kernel called through its address (envs.calls): the same results as a direct call,
-types checked when the caller compiles, and the fused step links no integrator."""
+types checked when the caller compiles, and the fused step links no kernel."""
 
 from __future__ import annotations
+
+import inspect
 
 import gymnasium as gym
 import numpy as np
@@ -21,47 +23,75 @@ def scaled_sum(x, k, out):
 
 
 @njit(cache=False)
+def norm(x):
+    return np.sqrt((x * x).sum()), x * 2.0
+
+
+SUM = "tests.envs.test_calls.scaled_sum(array(float64, 1d, C), int64, array(float64, 1d, C))"
+NORM = "tests.envs.test_calls.norm(array(float64, 1d, C))"
+
+
+@njit(cache=False)
 def caller(where, x, k, out):
-    calls.call(where, "array(float64, 1d, C), int64, array(float64, 1d, C)", (x, k, out))
+    calls.call(where, SUM, (x, k, out))
 
 
 @njit(cache=False)
 def caller_with_other_types(where, x, k, out):
-    calls.call(where, "array(float64, 1d, C), float64, array(float64, 1d, C)", (x, k, out))
+    calls.call(where, SUM, (x, 1.0 * k, out))
+
+
+@njit(cache=False)
+def caller_of_norm(where, x):
+    length, doubled = calls.call(where, NORM, (x,))
+    return length + doubled[0]
 
 
 def test_a_call_through_the_address_is_the_direct_call():
     x, out = np.arange(5.0), np.ones(5)
-    where = calls.address(scaled_sum, (typeof(x), typeof(3), typeof(out)))
-    caller(where, x, 3, out)
+    signature = (typeof(x), typeof(3), typeof(out))
+    assert calls.label(scaled_sum, signature) == SUM
+    caller(calls.address(scaled_sum, signature), x, 3, out)
     assert out.tolist() == (3 * x + 1).tolist()
+
+
+def test_a_call_gives_the_kernel_s_result():
+    x = np.array([3.0, 4.0])
+    where = calls.address(norm, (typeof(x),))
+    assert caller_of_norm(where, x) == 5.0 + 6.0  # a tuple holding a new array comes back
 
 
 def test_arguments_of_other_types_do_not_compile():
     x, out = np.arange(5.0), np.ones(5)
     where = calls.address(scaled_sum, (typeof(x), typeof(3), typeof(out)))
-    with pytest.raises(TypingError, match=r"arguments \(.*int64.*\) are not the kernel's"):
+    with pytest.raises(TypingError, match=r"arguments \(.*float64.*\) are not those of"):
         caller_with_other_types(where, x, 3, out)
 
 
+def slots(rt):
+    return [slot for slot, *_ in rt._calls]
+
+
 @pytest.mark.parametrize("rows", [1, 9])  # erk_row one row at a time; erk_rows in lanes
-def test_the_fused_step_calls_the_integrator_by_address(rows):
+def test_the_fused_step_calls_every_kernel_by_address(rows):
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", rows, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
     module = rt.system.kernel_module
+    assert rt._calls[0][1] is (module.erk_row if rows == 1 else module.erk_rows)
     reached = rt._fused.py_func.__globals__.values()  # what numba would link into the step
-    assert not any(v is module.erk_row or v is module.erk_rows for v in reached)
-    assert rt._fused_K[rt._integrator_at] > 0  # the address, written when the step was bound
+    assert [v for v in reached if hasattr(v, "py_func") and v is not rt._fused] == []
+    assert "_call(addresses[" in inspect.getsource(rt._fused.py_func)
+    assert (rt._fused_K[slots(rt)] > 0).all()  # the addresses, written when it was bound
     obs = vec.reset(seed=0)[0]
     assert np.isfinite(vec.step(np.zeros(vec.action_space.shape, np.float32))[0]).all()
     assert not np.array_equal(obs, vec.unwrapped._rt.O)  # it moved
 
 
-def test_a_step_without_the_integrator_s_address_refuses_to_run():
+def test_a_step_without_an_address_refuses_to_run():
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", 1, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
     K = rt._fused_K.copy()
-    K[rt._integrator_at] = 0  # as after unpickling, before bind_fused writes it
+    K[slots(rt)[-1]] = 0  # as after unpickling, before bind_fused writes them
     actions = np.zeros((1, 2))
     with pytest.raises(RuntimeError, match="called before it was bound"):
         rt._fused_bound(actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, K,
@@ -80,9 +110,9 @@ def test_a_copied_env_binds_its_own_address():
     vec.step(a)
     for twin in (pickle.loads(pickle.dumps(vec)), copy.deepcopy(vec)):
         rt = twin.unwrapped._rt
-        assert rt._fused_bound is None and rt._fused_K[rt._integrator_at] == 0
+        assert rt._fused_bound is None and (rt._fused_K[slots(rt)] == 0).all()
         bound(twin)
-        assert rt._fused_K[rt._integrator_at] == vec.unwrapped._rt._fused_K[rt._integrator_at]
+        assert (rt._fused_K[slots(rt)] == vec.unwrapped._rt._fused_K[slots(rt)]).all()
     ref = copy.deepcopy(vec)
     for _ in range(5):
         assert np.array_equal(vec.step(a)[0], bound(ref).step(a)[0])
