@@ -189,6 +189,7 @@ def plan(rt, functions: dict):
     plan = {
         "model_key": s.kernel_module.KEY,
         "floats": floats,
+        "sizes": (sum(1 if w is None else w for *_, w in floats), len(bools), len(C), len(K)),
         "bools": bools,
         "constants": real_constants + whole_constants,
         "integer_constants": {k for k, _ in whole},

@@ -11,9 +11,10 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
+from numba import njit
 
 import envs
-from envs import arm
+from envs import arm, fused
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.binding import bound
@@ -197,7 +198,7 @@ def test_the_generated_step_names_parameters_and_terms_as_the_book_does():
     with open(module.__file__, encoding="utf-8") as fh:
         text = fh.read()
     assert "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params," in text
-    assert "terms = F_[" in text
+    assert "terms = matrix(F_, " in text
     assert not re.search(r"\b[pqQ]\b", text)
 
 
@@ -243,3 +244,35 @@ def test_an_env_stepped_a_few_times_never_compiles_its_fused_step(monkeypatch):
     assert rt._fused_pending is None and rt._fused_bound is None
     env.step(env.action_space.sample())  # one more: the step starts compiling
     assert rt._fused_pending is not None
+
+
+@njit(cache=False)
+def _views(flat, table):
+    m = fused.matrix(flat, 3, 2, 4)
+    m[1, 2] = -1.0  # a view: written through to flat[3 + 1 * 4 + 2]
+    c = fused.column(table, 2)
+    c[0] = -2.0
+    return m.copy(), c.copy()
+
+
+def test_the_step_s_unchecked_views_are_numpy_s_views():
+    flat, table = np.arange(20.0), np.arange(12.0).reshape(3, 4)
+    expected = flat[3:11].reshape(2, 4).copy(), table[:, 2].copy()
+    expected[0][1, 2], expected[1][0] = -1.0, -2.0
+    m, c = _views(flat, table)
+    assert np.array_equal(m, expected[0]) and np.array_equal(c, expected[1])
+    assert flat[9] == -1.0 and table[0, 2] == -2.0
+
+
+def test_a_step_given_buffers_of_other_sizes_refuses_to_run():
+    """The views into the flat buffers are not bounds-checked: the step checks the buffers'
+    sizes once, before it makes them."""
+    vec = gym.make_vec("Lagrange/TwoLinkArm-v1", 3, vectorization_mode="vector_entry_point")
+    rt = bound(vec).unwrapped._rt
+    args = [rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
+            rt._task_params, -1]  # fmt: skip
+    for k in (0, 1, 4):  # F_, B_, C_
+        short = list(args)
+        short[k] = args[k][:-1].copy()
+        with pytest.raises(ValueError, match="sizes the step was made for"):
+            rt._fused_bound(np.zeros((3, 2)), *short)
