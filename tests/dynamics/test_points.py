@@ -63,7 +63,10 @@ def test_a_force_on_the_bead_maps_along_and_across_its_rod():
     assert np.allclose(system.point_forces(x, "bead", f), expected, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("model", ["two_link_arm", "rolling_disk"])
+# the disk's pushed and per-copy lanes compile for this test alone (about 5 s of CPU): -m slow
+@pytest.mark.parametrize(
+    "model", ["two_link_arm", pytest.param("rolling_disk", marks=pytest.mark.slow)]
+)
 @pytest.mark.parametrize("rows", [1, 9])  # one row at a time, and vector lanes
 def test_the_pushed_step_adds_the_work_of_its_forces_and_nothing_without_them(model, rows):
     """W = 0 steps bit for bit as the step without forces; with held generalised forces W
