@@ -106,15 +106,11 @@ def erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, hi):
     p = P[r]. numba prunes the branches on `P is None` before compiling, so the shared form
     never compiles the per-row kernels (the bicycle's `derivative_lanes_p` alone takes 20 s).
     W (N, n_q), where not None (with P), are generalised forces added to each row's forcing
-    and held over the step (external pushes; W = 0 steps bit for bit as W None)."""
+    and held over the step (external pushes; W = 0 steps bit for bit as W None). Callers
+    step fewer than LANES_FROM rows without pushes by `erk_row` (the same result, faster
+    for so few): calling it from here would link it into every form of this kernel, whose
+    compilation re-optimised it each time."""
     m = hi - lo
-    if m < LANES_FROM and W is None:
-        for r in range(lo, hi):
-            if P is None:
-                erk_row(T, X, U, p, h, substeps, a, w, c, out, r)
-            else:
-                erk_row(T, X, U, P[r], h, substeps, a, w, c, out, r)
-        return
     pc = as_columns(P, p.shape[0], lo, m)  # the block's parameters
     wc = as_columns(W, N_Q, lo, m)  # the block's generalised forces
     x = as_columns(X, X.shape[1], lo, m)
@@ -196,9 +192,9 @@ def lanes_derivative(t, x, u, p, pc, wc, P, W, d):
 
 
 LANES_FROM = 8
-"""Blocks of fewer rows step one row at a time (`erk_row`): the column loops' set-up per
-stage costs more than the arithmetic of a few rows (the single env: 150 ns against 20 ns
-per derivative evaluation)."""
+"""Fewer rows step one row at a time (`erk_row`, called by System and the envs): the column
+loops' set-up per stage costs more than the arithmetic of a few rows (the single env:
+150 ns against 20 ns per derivative evaluation)."""
 
 
 @njit(cache=True, error_model="numpy")

@@ -205,12 +205,7 @@ class System:
         tableau = method_tableau(method)
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
-        m = self._m
-        if X.shape[0] < m.LANES_FROM:  # as erk_rows steps so few rows, without compiling it
-            for r in range(X.shape[0]):
-                m.erk_row(T, X, U, self._p, dt / substeps, substeps, *tableau, out, r)
-        else:
-            self._blocks(T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out)
+        self._blocks(T, X, U, self._p, None, None, dt / substeps, substeps, *tableau, out)
         out = self._finite("step", out, T, X, U, dt=dt)
         return out.reshape(lead + (self.state_size,))
 
@@ -267,9 +262,15 @@ class System:
     def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out) -> None:
         """The model's `erk_rows` over all rows, BLOCK rows a call: a loop here rather than
         a compiled one, whose compilation re-optimised all of erk_rows (0.6-1 s a model)
-        for a few microseconds a step saved."""
+        for a few microseconds a step saved; fewer than LANES_FROM rows without pushes by
+        `erk_row`, one at a time (the same result)."""
         erk_rows, n = self._m.erk_rows, X.shape[0]
-        if n <= BLOCK:  # one call: a single state, an env's rows
+        if n < self._m.LANES_FROM and W is None:  # so few rows: one at a time, as erk_rows would
+            erk_row = self._m.erk_row
+            for r in range(n):
+                erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out, r)
+            return
+        if n <= BLOCK:  # one call: an env's rows
             erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, 0, n)
             return
         for lo in range(0, n, BLOCK):
