@@ -25,20 +25,16 @@ import types
 from pathlib import Path
 
 import numpy as np
-from numba import types as numba_types
-from numba.core import cgutils
-from numba.core.imputils import impl_ret_borrowed
-from numba.extending import intrinsic, overload
 
 from dynamics import cache
 
-from . import calls
+from . import buffers, calls
 
 _CODE_KEY = hashlib.sha256(
-    Path(calls.__file__).read_bytes() + Path(__file__).read_bytes()
+    b"".join(Path(m.__file__).read_bytes() for m in (buffers, calls))
 ).hexdigest()
-"""The code of envs.calls and of this module (the intrinsics and overloads the step's
-machine code inlines), in the step's key."""
+"""The code of envs.buffers and envs.calls (the intrinsics and overloads the step's machine
+code inlines), in the step's key."""
 LIBRARIES = ("numpy", "numba", "math", "cmath", "builtins")
 """Top-level packages whose functions are identified by name (their code changes with
 their version, which numba's cache already keys on), not hashed."""
@@ -134,113 +130,7 @@ def _feed(h, obj, seen: set[int]) -> bool:
     return True
 
 
-# ---- the generated step --------------------------------------------------------------------
-def put_column(out, k, v):
-    """out[:, k] = v, v one value per row or one for all (a scalar)."""
-    out[:, k] = v
-
-
-@overload(put_column)
-def _put_column(out, k, v):
-    """Row loops in place of numpy's broadcasting assignment, whose error message (shapes
-    formatted as text) alone cost about 4 s of compilation per fused step."""
-    if isinstance(v, numba_types.Array) and v.ndim == 1:
-
-        def rows(out, k, v):
-            for b in range(out.shape[0]):
-                out[b, k] = v[b]
-
-        return rows
-    if isinstance(v, numba_types.Array):  # one value as a 0-d array
-
-        def zero_d(out, k, v):
-            for b in range(out.shape[0]):
-                out[b, k] = v[()]
-
-        return zero_d
-
-    def scalar(out, k, v):
-        for b in range(out.shape[0]):
-            out[b, k] = v
-
-    return scalar
-
-
-def put_rows(out, v):
-    """out[:] = v, v one value per row."""
-    out[:] = v
-
-
-@overload(put_rows)
-def _put_rows(out, v):
-    def rows(out, v):
-        for b in range(out.shape[0]):
-            out[b] = v[b]
-
-    return rows
-
-
-@intrinsic
-def matrix(typingctx, buffer, offset, rows, cols):
-    """buffer[offset:offset + rows * cols].reshape((rows, cols)), a view, without the
-    slice's and the reshape's checks: the step checks its buffers' sizes once, and each
-    checked view cost its compilation about 0.03 s (a step unpacks 10-20)."""
-    if not (isinstance(buffer, numba_types.Array) and buffer.ndim == 1 and buffer.layout == "C"):
-        return None
-    result = buffer.copy(ndim=2, layout="C")
-
-    def codegen(context, builder, signature, args):
-        flat = context.make_array(buffer)(context, builder, args[0])
-        out = context.make_array(result)(context, builder)
-        start, m, k = (
-            context.cast(builder, v, t, numba_types.intp)
-            for v, t in zip(args[1:], signature.args[1:])
-        )
-        item = context.get_constant(
-            numba_types.intp, context.get_abi_sizeof(context.get_data_type(buffer.dtype))
-        )
-        context.populate_array(
-            out,
-            data=builder.gep(flat.data, [start]),
-            shape=cgutils.pack_array(builder, [m, k]),
-            strides=cgutils.pack_array(builder, [builder.mul(k, item), item]),
-            itemsize=item,
-            meminfo=flat.meminfo,
-            parent=flat.parent,
-        )
-        return impl_ret_borrowed(context, builder, result, out._getvalue())
-
-    return result(buffer, offset, rows, cols), codegen
-
-
-@intrinsic
-def column(typingctx, rows, k):
-    """rows[:, k], a view (layout 'A', as numba types the slice), without the index's
-    checks: k is a column of the runtime's own array, written into the step's source."""
-    if not (isinstance(rows, numba_types.Array) and rows.ndim == 2 and rows.layout == "C"):
-        return None
-    result = rows.copy(ndim=1, layout="A")
-
-    def codegen(context, builder, signature, args):
-        table = context.make_array(rows)(context, builder, args[0])
-        out = context.make_array(result)(context, builder)
-        k = context.cast(builder, args[1], signature.args[1], numba_types.intp)
-        shape = cgutils.unpack_tuple(builder, table.shape, 2)
-        strides = cgutils.unpack_tuple(builder, table.strides, 2)
-        context.populate_array(
-            out,
-            data=builder.gep(table.data, [k]),
-            shape=cgutils.pack_array(builder, [shape[0]]),
-            strides=cgutils.pack_array(builder, [strides[0]]),
-            itemsize=table.itemsize,
-            meminfo=table.meminfo,
-            parent=table.parent,
-        )
-        return impl_ret_borrowed(context, builder, result, out._getvalue())
-
-    return result(rows, k), codegen
-
-
+# ---- the generated step ----------------------------------------------------------------
 RENAMED = {"Q": "terms"}
 """Runtime arrays named otherwise in the generated step: `Q` is the reward terms (in the
 book Q is the generalised forces)."""
@@ -269,7 +159,7 @@ def _header(plan: dict) -> list[str]:
         "from numba import njit",
         "",
         "from envs.calls import call as _call",
-        "from envs.fused import column, matrix, put_column, put_rows",
+        "from envs.buffers import column, matrix, put_column, put_rows",
         "",
         "# Every kernel is called through its address (envs.calls), from K_'s `addresses`:",
         "# the model's integrator and _outputs, the runtime's _apply, _advance, _observe and",
@@ -437,7 +327,7 @@ def build(plan: dict, functions: dict, types: dict | None = None):
     through their addresses and whose globals are `types` (the named inputs' namedtuple
     classes, named in the source by their field hash), or None when the functions cannot
     be fingerprinted."""
-    digest = fingerprint(*(functions[k] for k in sorted(functions)), _put_column, _put_rows)
+    digest = fingerprint(*(functions[k] for k in sorted(functions)))
     if digest is None:
         return None
     body = source(plan)

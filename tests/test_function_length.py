@@ -6,7 +6,8 @@ Excluded: model declarations, the functions annotated `-> ModelSpec` (the bicycl
 is data, the system written once the way the book writes it (points, velocities, T, V, Q
 in order), and reads best from top to bottom; examples/ holds only such declarations and
 their tasks and is not scanned. `ALLOWED` names each other exception and why; an entry
-that is no longer needed fails here, so that it is removed."""
+that is no longer needed fails here, so that it is removed. No module of envs/ or agents/
+is over 400 lines."""
 
 from __future__ import annotations
 
@@ -76,3 +77,19 @@ def test_the_check_finds_a_long_function_and_skips_a_declaration(tmp_path):
     for package in ("envs", "agents"):
         (tmp_path / package).mkdir()
     assert long_functions(tmp_path) == {"dynamics/m.py:A.long": LIMIT + 1}
+
+
+FILE_LIMIT = 400
+"""No module of envs/ or agents/ is over this many lines (issue 28's target: a module one
+job, read in one sitting); dynamics/ holds the derivation and kernel templates, whose
+length is the book's."""
+
+
+def test_no_module_of_envs_or_agents_is_over_400_lines():
+    lines = {
+        path.relative_to(ROOT).as_posix(): len(path.read_text(encoding="utf-8").splitlines())
+        for package in ("envs", "agents")
+        for path in sorted((ROOT / package).rglob("*.py"))
+    }
+    long = {path: n for path, n in lines.items() if n > FILE_LIMIT}
+    assert not long, f"modules over {FILE_LIMIT} lines (split them by job): {long}"

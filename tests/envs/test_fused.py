@@ -14,7 +14,7 @@ import pytest
 from numba import njit
 
 import envs
-from envs import arm, fused
+from envs import arm, buffers
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.binding import bound
@@ -173,7 +173,7 @@ def test_the_fused_steps_column_writes_equal_numpys_assignment(value):
     (float or int), one value for all (a scalar or a 0-d array)."""
     from numba import njit
 
-    from envs.fused import put_column, put_rows
+    from envs.buffers import put_column, put_rows
 
     @njit
     def write(out, flags, v, w):
@@ -248,9 +248,9 @@ def test_an_env_stepped_a_few_times_never_compiles_its_fused_step(monkeypatch):
 
 @njit(cache=False)
 def _views(flat, table):
-    m = fused.matrix(flat, 3, 2, 4)
+    m = buffers.matrix(flat, 3, 2, 4)
     m[1, 2] = -1.0  # a view: written through to flat[3 + 1 * 4 + 2]
-    c = fused.column(table, 2)
+    c = buffers.column(table, 2)
     c[0] = -2.0
     return m.copy(), c.copy()
 
