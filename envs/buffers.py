@@ -55,18 +55,37 @@ def _put_rows(out, v):
     return rows
 
 
+def _contiguous(array, ndim: int) -> bool:
+    return isinstance(array, numba_types.Array) and array.ndim == ndim and array.layout == "C"
+
+
+def _view(context, builder, source_type, source, result_type, data, shape, strides):
+    """A `result_type` array of `shape` and byte `strides` at `data`, which lies in the
+    array `source` (of `source_type`): a view that keeps `source`'s memory alive."""
+    array = context.make_array(source_type)(context, builder, source)
+    out = context.make_array(result_type)(context, builder)
+    context.populate_array(
+        out,
+        data=data(array),
+        shape=cgutils.pack_array(builder, shape),
+        strides=cgutils.pack_array(builder, strides),
+        itemsize=array.itemsize,
+        meminfo=array.meminfo,
+        parent=array.parent,
+    )
+    return impl_ret_borrowed(context, builder, result_type, out._getvalue())
+
+
 @intrinsic
 def matrix(typingctx, buffer, offset, rows, cols):
     """buffer[offset:offset + rows * cols].reshape((rows, cols)), a view, without the
     slice's and the reshape's checks: the step checks its buffers' sizes once, and each
     checked view cost its compilation about 0.03 s (a step unpacks 10-20)."""
-    if not (isinstance(buffer, numba_types.Array) and buffer.ndim == 1 and buffer.layout == "C"):
+    if not _contiguous(buffer, 1):
         return None
     result = buffer.copy(ndim=2, layout="C")
 
     def codegen(context, builder, signature, args):
-        flat = context.make_array(buffer)(context, builder, args[0])
-        out = context.make_array(result)(context, builder)
         start, m, k = (
             context.cast(builder, v, t, numba_types.intp)
             for v, t in zip(args[1:], signature.args[1:])
@@ -74,16 +93,9 @@ def matrix(typingctx, buffer, offset, rows, cols):
         item = context.get_constant(
             numba_types.intp, context.get_abi_sizeof(context.get_data_type(buffer.dtype))
         )
-        context.populate_array(
-            out,
-            data=builder.gep(flat.data, [start]),
-            shape=cgutils.pack_array(builder, [m, k]),
-            strides=cgutils.pack_array(builder, [builder.mul(k, item), item]),
-            itemsize=item,
-            meminfo=flat.meminfo,
-            parent=flat.parent,
-        )
-        return impl_ret_borrowed(context, builder, result, out._getvalue())
+        return _view(context, builder, buffer, args[0], result,
+                     lambda flat: builder.gep(flat.data, [start]), [m, k],
+                     [builder.mul(k, item), item])  # fmt: skip
 
     return result(buffer, offset, rows, cols), codegen
 
@@ -92,25 +104,17 @@ def matrix(typingctx, buffer, offset, rows, cols):
 def column(typingctx, rows, k):
     """rows[:, k], a view (layout 'A', as numba types the slice), without the index's
     checks: k is a column of the runtime's own array, written into the step's source."""
-    if not (isinstance(rows, numba_types.Array) and rows.ndim == 2 and rows.layout == "C"):
+    if not _contiguous(rows, 2):
         return None
     result = rows.copy(ndim=1, layout="A")
 
     def codegen(context, builder, signature, args):
         table = context.make_array(rows)(context, builder, args[0])
-        out = context.make_array(result)(context, builder)
         k = context.cast(builder, args[1], signature.args[1], numba_types.intp)
         shape = cgutils.unpack_tuple(builder, table.shape, 2)
         strides = cgutils.unpack_tuple(builder, table.strides, 2)
-        context.populate_array(
-            out,
-            data=builder.gep(table.data, [k]),
-            shape=cgutils.pack_array(builder, [shape[0]]),
-            strides=cgutils.pack_array(builder, [strides[0]]),
-            itemsize=table.itemsize,
-            meminfo=table.meminfo,
-            parent=table.parent,
-        )
-        return impl_ret_borrowed(context, builder, result, out._getvalue())
+        return _view(context, builder, rows, args[0], result,
+                     lambda array: builder.gep(array.data, [k]), [shape[0]],
+                     [strides[0]])  # fmt: skip
 
     return result(rows, k), codegen
