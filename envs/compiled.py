@@ -243,9 +243,8 @@ def variable_types(rt, plan: dict) -> dict:
     one = params.copy(ndim=1) if plan["rows"] else params
     kinds.update(one_params=one, row_params=params if plan["rows"] else types.none)
     kinds["x"] = kinds["rows_x" if plan["outputs"] else "X"]
-    for var, cls, rows in zip(("xs", "as_", "gs"), rt._types, (kinds["x"], rt.A, rt.G)):
-        width = rows.shape[1] if isinstance(rows, np.ndarray) else len(cls._fields)
-        kinds[var] = _as_fused(typeof(names.columns(cls, np.zeros((1, width)))))
+    for var, cls in zip(("xs", "as_", "gs"), rt._types):  # columns of x, A and G by name
+        kinds[var] = _as_fused(typeof(names.columns(cls, np.zeros((1, len(cls._fields))))))
     return kinds
 
 
