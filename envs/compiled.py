@@ -208,7 +208,7 @@ def plan(rt, functions: dict):
     }
     at = next(start for name, start, *_ in whole_constants if name == "addresses")
     kinds = variable_types(rt, plan)
-    rt._calls = [(at, *integrator(rt))]
+    rt._calls = [(at, *integrator(rt, kinds))]
     for role in functions:
         rt._calls.append((at + len(rt._calls), functions[role],
                           tuple(kinds[v] for v in fused.arguments(role))))  # fmt: skip
@@ -239,8 +239,10 @@ def variable_types(rt, plan: dict) -> dict:
     for name, _, _, shape in plan["constants"]:
         dtype = i8 if name in plan["integer_constants"] else f8
         kinds[name] = dtype if shape is None else types.Array(dtype, len(shape), "C")
+    if rt.perturber is not None:  # the inputs applied and the pushes' forces
+        kinds.update(applied=typeof(rt.perturber.applied), W=typeof(rt.perturber.W))
     params = kinds["model_params"]
-    one = params.copy(ndim=1) if plan["rows"] else params
+    one = params.copy(ndim=1) if plan["rows"] else params  # a row's, or all rows
     kinds.update(one_params=one, row_params=params if plan["rows"] else types.none)
     kinds["x"] = kinds["rows_x" if plan["outputs"] else "X"]
     for var, cls in zip(("xs", "as_", "gs"), rt._types):  # columns of x, A and G by name
@@ -248,22 +250,19 @@ def variable_types(rt, plan: dict) -> dict:
     return kinds
 
 
-def integrator(rt):
+def integrator(rt, kinds: dict):
     """(kernel, argument types) of the model's integrator as runtime `rt`'s fused step calls
-    it: `erk_row` one row at a time, or `erk_rows` a block at a time (see envs.fused)."""
-    from numba import typeof
+    it (`kinds`: `variable_types`): `erk_row` one row at a time, or `erk_rows` a block at a
+    time (see envs.fused)."""
     from numba.core import types
 
-    module, f8, i8 = rt.system.kernel_module, types.float64, types.int64
-    rows, cols = types.Array(f8, 1, "C"), types.Array(f8, 2, "C")  # views of the buffers
-    params = typeof(rt._model_params)
-    one = params.copy(ndim=1) if rt.parameters.per_row else params  # a row's, or all rows'
-    head, tableau = (rows, cols, cols), (f8, i8, cols, rows, rows, cols)
+    module, i8 = rt.system.kernel_module, types.int64
+    head = tuple(kinds[v] for v in ("T", "X", "U", "one_params"))
+    tableau = tuple(kinds[v] for v in ("h", "substeps", "ta", "tw", "tc", "X_next"))
     if rt._row_by_row:
-        return module.erk_row, (*head, one, *tableau, i8)
-    shared = types.none if not rt.parameters.per_row else params
-    forces = typeof(rt.perturber.W) if rt._pushed else types.none
-    return module.erk_rows, (*head, one, shared, forces, *tableau, i8, i8)
+        return module.erk_row, (*head, *tableau, i8)
+    forces = kinds["W"] if rt._pushed else types.none
+    return module.erk_rows, (*head, kinds["row_params"], forces, *tableau, i8, i8)
 
 
 def compile_fused(rt, jitted: dict) -> None:
