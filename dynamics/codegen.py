@@ -4,10 +4,11 @@ All of a model's expressions are reduced together by sympy's common-subexpressio
 elimination (`program.Program`) and each kernel prints, as straight-line scalar code (`math`
 functions) that writes into output arrays, the assignments its own results need; the
 linearisation's Jacobians are differentiated through the same assignments. The fixed
-kernels in `kernels.py` (right-hand side, batched RK4 with constraint projection, batched
-energy...) are appended to the same module so that numba's on-disk cache can hold the whole
-model; the functions they share with every model (the pivoting solve, the lanes' sin and cos,
-finiteness scans) are imported from `lanes.py`, compiled once per machine. See
+kernels in `kernels.py` (right-hand side, constraint projection, batched energy...) are
+appended to the same module so that numba's on-disk cache can hold the whole model; the
+functions they share with every model (the pivoting solve, the lanes' sin and cos,
+finiteness scans) are imported from `lanes.py`, and the integrator (`stepping.py`) calls
+the model's derivative through its address: both are compiled once per machine. See
 benchmarks/dynamics.py for why numba and not numpy or C.
 """
 
@@ -280,7 +281,7 @@ def _constants(d: Derived, key: str) -> str:
             "",
             "import numpy",
             "import numpy as np",
-            "from numba import njit, prange  # noqa: F401",
+            "from numba import njit  # noqa: F401",
             "",
             "from dynamics.lanes import (  # noqa: F401",
             "    PIVOT_TOL, all_finite, fail, first_nonfinite, solve, vcos, vsin,",

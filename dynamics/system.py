@@ -21,7 +21,7 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from . import cache, checks, physical
+from . import cache, checks, physical, stepping
 from .methods import METHODS
 
 
@@ -167,7 +167,8 @@ class System:
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty_like(X)
         if X.shape[0] >= VECTORIZE_FROM:
-            self._m.derivative_rows(T, X, U, self._p, out, BLOCK)
+            model = stepping.table(self._m, "derivative_lanes")
+            stepping.derivative_rows(T, X, U, self._p, out, BLOCK, model)
         else:
             self._m.derivative_batch(T, X, U, self._p, out)
         return self._finite("state_derivative", out, T, X, U).reshape(lead + (self.state_size,))
@@ -231,7 +232,9 @@ class System:
         h = dt / substeps
         if num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            self._m.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out, BLOCK)
+            model = stepping.table(self._m, "derivative_lanes")
+            stepping.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out,
+                                        BLOCK, model)  # fmt: skip
         else:
             self._blocks(T, X, U, self._p, None, None, h, substeps, a, w, c, out)
 
@@ -246,7 +249,9 @@ class System:
         h = dt / substeps
         if num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            self._m.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK)
+            model = stepping.table(self._m, "derivative_lanes_p")
+            stepping.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK,
+                                        model)  # fmt: skip
         else:
             self._blocks(T, X, U, P[0], P, None, h, substeps, a, w, c, out)
 
@@ -260,21 +265,21 @@ class System:
         self._blocks(T, X, U, P[0], P, W, dt / substeps, substeps, *tableau, out)
 
     def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out) -> None:
-        """The model's `erk_rows` over all rows, BLOCK rows a call: a loop here rather than
-        a compiled one, whose compilation re-optimised all of erk_rows (0.6-1 s a model)
-        for a few microseconds a step saved; fewer than LANES_FROM rows without pushes by
-        `erk_row`, one at a time (the same result)."""
-        erk_rows, n = self._m.erk_rows, X.shape[0]
-        if n < self._m.LANES_FROM and W is None:  # so few rows: one at a time, as erk_rows would
-            erk_row = self._m.erk_row
+        """`stepping.erk_rows` over all rows, BLOCK rows a call: a loop here rather than a
+        compiled one, whose compilation re-optimised all of erk_rows for a few microseconds
+        a step saved; fewer than LANES_FROM rows without pushes by `erk_row`, one at a time
+        (the same result)."""
+        n = X.shape[0]
+        if n < stepping.LANES_FROM and W is None:  # so few rows: one at a time, as erk_rows would
+            model = stepping.table(self._m, "derivative_lanes")
             for r in range(n):
-                erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out, r)
+                stepping.erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out,
+                                 r, model)  # fmt: skip
             return
-        if n <= BLOCK:  # one call: an env's rows
-            erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, 0, n)
-            return
-        for lo in range(0, n, BLOCK):
-            erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo, min(n, lo + BLOCK))
+        model = stepping.table(self._m, *stepping.lane_kernels(P is not None, W is not None))
+        for lo in range(0, n, BLOCK):  # one call for an env's rows
+            stepping.erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo,
+                              min(n, lo + BLOCK), model)  # fmt: skip
 
     def point_forces(self, x, point: str, force, t=0.0) -> np.ndarray:
         """The generalised forces (..., n_q) of `force` (..., 2 or 3 components, in the basis

@@ -10,10 +10,11 @@ import warnings
 
 import numpy as np
 
+from dynamics import calls, stepping
 from dynamics.cache import keep_numba_cache_true
 from dynamics.system import BLOCK, _kernel_compiled, method_tableau
 
-from . import calls, checks, fused, names
+from . import checks, fused, names
 from .observation import observe
 from .row_kernels import advance, apply_actions, finish
 from .task import Derived
@@ -182,8 +183,10 @@ def plan(rt, functions: dict):
     roles = ["integrator", *functions]
     whole = [("actuated", plant.actuated), ("ops", plant.ops),
              ("output_index", plant.output_index), ("substeps", rt.substeps),
-             ("block", BLOCK), ("addresses", np.zeros(len(roles)))]  # fmt: skip
-    # addresses: of the kernels the step calls, written by bind_fused (envs.calls)
+             ("block", BLOCK), ("addresses", np.zeros(len(roles))),
+             ("model_kernels", np.zeros(stepping.TABLE_SIZE))]  # fmt: skip
+    # addresses: of the kernels the step calls; model_kernels: the model's table, which the
+    # integrator reads (dynamics.stepping); both written by bind_fused (dynamics.calls)
     real_constants, C = pack(real, np.float64)
     whole_constants, K = pack(whole, np.int64)
     plan = {
@@ -207,6 +210,8 @@ def plan(rt, functions: dict):
         "row_by_row": rt._row_by_row,  # erk_row, one row at a time; else erk_rows
     }
     at = next(start for name, start, *_ in whole_constants if name == "addresses")
+    rt._model_table = next(start for name, start, *_ in whole_constants
+                           if name == "model_kernels")  # fmt: skip
     kinds = variable_types(rt, plan)
     rt._calls = [(at, *integrator(rt, kinds))]
     for role in functions:
@@ -251,18 +256,25 @@ def variable_types(rt, plan: dict) -> dict:
 
 
 def integrator(rt, kinds: dict):
-    """(kernel, argument types) of the model's integrator as runtime `rt`'s fused step calls
-    it (`kinds`: `variable_types`): `erk_row` one row at a time, or `erk_rows` a block at a
-    time (see envs.fused)."""
+    """(kernel, argument types) of the integrator as runtime `rt`'s fused step calls it
+    (`kinds`: `variable_types`): `erk_row` one row at a time, or `erk_rows` a block at a
+    time (see envs.fused), both of `dynamics.stepping`, with the model's table last."""
     from numba.core import types
 
-    module, i8 = rt.system.kernel_module, types.int64
+    i8, table = types.int64, kinds["model_kernels"]
     head = tuple(kinds[v] for v in ("T", "X", "U", "one_params"))
     tableau = tuple(kinds[v] for v in ("h", "substeps", "ta", "tw", "tc", "X_next"))
     if rt._row_by_row:
-        return module.erk_row, (*head, *tableau, i8)
+        return stepping.erk_row, (*head, *tableau, i8, table)
     forces = kinds["W"] if rt._pushed else types.none
-    return module.erk_rows, (*head, kinds["row_params"], forces, *tableau, i8, i8)
+    return stepping.erk_rows, (*head, kinds["row_params"], forces, *tableau, i8, i8, table)
+
+
+def model_kernels(rt) -> tuple[str, ...]:
+    """The model's kernels runtime `rt`'s integrator calls (`dynamics.stepping.table`)."""
+    if rt._row_by_row:
+        return ("derivative_lanes",)
+    return stepping.lane_kernels(rt.parameters.per_row, rt._pushed)
 
 
 def compile_fused(rt, jitted: dict) -> None:
@@ -296,6 +308,9 @@ def actions_type():
 def bind_fused(rt):
     """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
     first use) for float64 actions of any layout (`actions_type`), bound as `bind` does."""
+    at = rt._model_table  # first the model's kernels, which the integrator calls
+    table = stepping.table(rt.system.kernel_module, *model_kernels(rt))
+    rt._fused_K[at : at + len(table)] = table
     for slot, kernel, types in rt._calls:  # compiled (or loaded) for the step's arguments
         rt._fused_K[slot] = calls.address(kernel, types)
     args = (rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,

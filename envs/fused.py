@@ -5,7 +5,7 @@ check divergence, the observation, the task's reward, success and failure, the r
 that each cost a Python call, argument unboxing and boxed results: for the single env,
 more than the integration itself. Here the chain is written out as the source of one
 numba function, in a generated module of the model cache, that calls each piece through
-its machine code's address (envs.calls: compiled once for its argument types, not
+its machine code's address (dynamics.calls: compiled once for its argument types, not
 linked and optimised again into every task's and form's step); the runtime's arrays are
 views of a few flat buffers, so the call takes ten arguments whatever the task.
 
@@ -26,14 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from dynamics import cache
+from dynamics import cache, calls
 
-from . import buffers, calls
+from . import buffers
 
 _CODE_KEY = hashlib.sha256(
     b"".join(Path(m.__file__).read_bytes() for m in (buffers, calls))
 ).hexdigest()
-"""The code of envs.buffers and envs.calls (the intrinsics and overloads the step's machine
+"""The code of envs.buffers and dynamics.calls (the intrinsics and overloads the step's machine
 code inlines), in the step's key."""
 LIBRARIES = ("numpy", "numba", "math", "cmath", "builtins")
 """Top-level packages whose functions are identified by name (their code changes with
@@ -158,13 +158,14 @@ def _header(plan: dict) -> list[str]:
     lines = [
         "from numba import njit",
         "",
-        "from envs.calls import call as _call",
+        "from dynamics.calls import call as _call",
         "from envs.buffers import column, matrix, put_column, put_rows",
         "",
-        "# Every kernel is called through its address (envs.calls), from K_'s `addresses`:",
-        "# the model's integrator and _outputs, the runtime's _apply, _advance, _observe and",
-        "# _finish, the task's _term_k, _success, _failure and _derived_k. The module's name",
-        "# hashes all of their code (envs.fused.build).",
+        "# Every kernel is called through its address (dynamics.calls), from K_'s",
+        "# `addresses`: the integrator (dynamics.stepping, which reads the model's kernels",
+        "# from `model_kernels`) and the model's _outputs, the runtime's _apply, _advance,",
+        "# _observe and _finish, the task's _term_k, _success, _failure and _derived_k. The",
+        "# module's name hashes all of their code (envs.fused.build).",
         "",
         "",
         "@njit(cache=True, error_model='numpy')",
@@ -261,16 +262,16 @@ def _integrate_lines(plan: dict) -> list[str]:
     kernels the vector's shape); pushes add the generalised forces W."""
     if plan.get("row_by_row"):  # what erk_rows does for so few rows, without compiling it
         one = "model_params[r]" if plan.get("rows") else "model_params"
-        args = f"T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r"
+        args = f"T, X, U, {one}, h, substeps, ta, tw, tc, X_next, r, model_kernels"
         return [
-            "    for r in range(n):  # the model's erk_row, one row at a time",
+            "    for r in range(n):  # the integrator's erk_row, one row at a time",
             f"        {_invoke(plan, 'integrator', args)}",
         ]
     forces = "W" if plan.get("pushed") else "None"
     args = (f"T, X, U, one_params, row_params, {forces}, h, substeps, ta, tw, tc, X_next, lo, "
-            "min(n, lo + block)")  # fmt: skip
+            "min(n, lo + block), model_kernels")  # fmt: skip
     return [
-        "    for lo in range(0, n, block):  # the model's erk_rows, a block at a time",
+        "    for lo in range(0, n, block):  # the integrator's erk_rows, a block at a time",
         f"        {_invoke(plan, 'integrator', args)}",
     ]
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dynamics import stepping
 from dynamics.system import _kernel_compiled, method_tableau
 
 from . import compiled
@@ -47,8 +48,9 @@ ONE_BY_ONE = 64
 """Rows a vector env steps one at a time before its fused step is bound (see `_integrate`):
 for at most 2,000 steps (`compiled.SEPARATE_FIRST`), about 6 us a row more than the lanes
 (the arm: 521 against 146 us a step at 64 rows, so at most 0.8 s over those steps), against
-1.3-2.6 s of CPU to compile the lanes of a model and form in the main thread; the fused
-step's thread compiles them."""
+compiling in the main thread what the lanes need and `erk_row` does not: the integrator's
+lanes (once per machine, 1.5-2 s of CPU) and, for rows with their own parameters, the
+model's `derivative_lanes_p` (0.3-1.3 s); the fused step's thread compiles them."""
 
 
 class NonFiniteActions(ValueError):
@@ -145,15 +147,16 @@ class Runtime:
                             self._E)  # fmt: skip
         # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
         # its `erk_rows` would: the same operations), in the fused step and without it
-        self._row_by_row = self.n < module.LANES_FROM and not self._pushed
-        self._erk_row, self._tableau = module.erk_row, method_tableau(self.integrator)
+        self._row_by_row = self.n < stepping.LANES_FROM and not self._pushed
+        self._tableau = method_tableau(self.integrator)
         self._fused_pending = None  # the thread compiling the fused step, if one does
         self._separate_steps = 0  # steps taken by separate calls while it was not bound
         compiled.compile_fused(self, jitted)
         # until the fused step is bound (which compiles the vector-lane kernels), up to
         # ONE_BY_ONE rows step one at a time too, as the lanes would (`erk_row`), when numba's
         # cache has no lanes yet: a vector env stepped a few times never compiles them
-        lanes = _kernel_compiled(module.erk_rows)
+        derivative = getattr(module, stepping.lane_kernels(self.parameters.per_row, False)[0])
+        lanes = _kernel_compiled(stepping.erk_rows) and _kernel_compiled(derivative)
         self._one_by_one = (self._fused is not None and not self._pushed
                             and self.n <= ONE_BY_ONE and not lanes)  # fmt: skip
 
@@ -163,7 +166,7 @@ class Runtime:
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
                   "_energy", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
-                  "_P", "_erk_row", "_fused_pending"):  # fmt: skip
+                  "_P", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -296,18 +299,20 @@ class Runtime:
         return compiled.fused_for(self) if step is None else step
 
     def _erk_row_args(self, r: int) -> tuple:
-        """The model's `erk_row` arguments that advance row r into `_X_next`."""
+        """`stepping.erk_row`'s arguments that advance row r into `_X_next`."""
         P = self._model_params
         p = P[r] if self.parameters.per_row else P
         h = self.control_period / self.substeps
-        return (self.T, self.X, self.U, p, h, self.substeps, *self._tableau, self._X_next, r)
+        model = stepping.table(self.system.kernel_module, "derivative_lanes")
+        return (self.T, self.X, self.U, p, h, self.substeps, *self._tableau, self._X_next, r,
+                model)  # fmt: skip
 
     def _integrate(self, perturbed) -> None:
         """The step of separate calls: X_next from X under U, with the pushes' forces."""
         s, args = self.system, (self.control_period, self.substeps, self._X_next, self.integrator)
         if self._row_by_row or (self._one_by_one and self._fused_bound is None):
             for r in range(self.n):
-                self._erk_row(*self._erk_row_args(r))
+                stepping.erk_row(*self._erk_row_args(r))
         elif self._pushed:
             s.step_pushed_unchecked(self.T, self.X, self.U, self._model_params, perturbed[1], *args)
         elif self.parameters.per_row:

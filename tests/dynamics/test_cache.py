@@ -114,7 +114,9 @@ def copied_cache(tmp_path, monkeypatch):
     """A private cache holding a copy of the warm bead model (file and numba files), and the
     path of its module; nothing of it loaded in this process yet."""
     warm = dynamics.get_model("bead_on_rotating_rod").compile()
-    _derivative(warm)  # numba writes its cache files at the first call
+    _derivative(warm)  # numba writes its cache files at the first call: of derivative_lanes,
+    x = np.array([[0.1, 0.2]])  # and of a second kernel, for two index files
+    warm._m.derivative_batch(np.zeros(1), x, np.zeros((1, 0)), warm._p, np.empty_like(x))
     source = Path(warm._m.__file__)
     root = tmp_path / "cache"
     (root / "__pycache__").mkdir(parents=True)

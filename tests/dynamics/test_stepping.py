@@ -4,7 +4,9 @@ import numba
 import numpy as np
 import pytest
 
+from dynamics import stepping
 from dynamics.methods import METHODS
+from dynamics.stepping import LANES_FROM
 from dynamics.system import BLOCK
 
 from .helpers import SCLERONOMIC, random_states
@@ -22,13 +24,9 @@ def test_global_error_falls_at_the_methods_order(method):
     assert 2 ** (order - 1) < errors[0] / errors[1] < 2 ** (order + 1)
 
 
-# the arm's threaded kernels by default; the disk's and the driven bead's only with -m slow:
-# they are compiled for this test alone (about 4-5 s of CPU each from a cold cache)
-@pytest.mark.parametrize(
-    "name",
-    [n if n == "two_link_arm" else pytest.param(n, marks=pytest.mark.slow)
-     for n in SCLERONOMIC],
-)  # fmt: skip
+# the threaded integrator is compiled once for every model (dynamics.stepping): each model
+# adds only its derivative, which the rest of the suite compiles too
+@pytest.mark.parametrize("name", SCLERONOMIC)
 @pytest.mark.parametrize("method", list(METHODS))
 def test_rows_step_alike_whatever_shares_their_block_and_however_many_threads(name, method):
     n = 3 * BLOCK + 5  # several blocks and a ragged last one
@@ -89,3 +87,32 @@ def test_a_few_rows_step_as_they_do_among_many(method):
     many = system.step(x, u, 0.05, 3, method=method)
     for rows in (slice(0, 1), slice(5, 8), slice(9, 16)):
         assert np.array_equal(system.step(x[rows], u[rows], 0.05, 3, method=method), many[rows])
+
+
+def test_one_integrator_serves_every_model():
+    """The integrator calls each model's derivative through its address (`stepping.table`),
+    so it is compiled once for all models: a second model adds no overload of its own, and
+    its compiled code links no model's kernel."""
+    arm, x = random_states("two_link_arm", 1, seed=16)
+    arm.step(x, np.zeros(arm.n_u), 0.01)
+    arm.step(np.repeat(x, LANES_FROM, 0), np.zeros((LANES_FROM, arm.n_u)), 0.01)
+    before = {k: list(k.signatures) for k in (stepping.erk_row, stepping.erk_rows)}
+    disk, y = random_states("rolling_disk", LANES_FROM, seed=17)
+    u = np.zeros((LANES_FROM, disk.n_u))
+    assert np.isfinite(disk.step(y, u, 0.01)).all() and np.isfinite(disk.step(y[0], u[0])).all()
+    assert {k: list(k.signatures) for k in before} == before
+    linked = [v for v in stepping.erk_rows.py_func.__globals__.values() if hasattr(v, "py_func")]
+    assert all(v.py_func.__module__ == "dynamics.stepping" for v in linked)
+
+
+def test_a_model_s_table_holds_the_kernels_asked_for():
+    arm, _ = random_states("two_link_arm", 1)
+    disk, _ = random_states("rolling_disk", 1)
+    t = stepping.table(arm.kernel_module, "derivative_lanes_p")
+    assert t[stepping.AT_DERIVATIVE_P] != 0 and t[stepping.AT_PROJECT] == 0  # no constraints
+    assert list(t[stepping.N_Q :]) == [2, 0, 2]  # n_q, n_c, K
+    t = stepping.table(disk.kernel_module, "derivative_lanes")
+    assert t[stepping.AT_DERIVATIVE] != 0 and t[stepping.AT_PROJECT] != 0
+    assert t[stepping.AT_DERIVATIVE_W] == 0  # compiled only when asked for
+    assert list(t[stepping.N_Q :]) == [5, 2, 7]  # two rolling constraints
+    assert stepping.table(disk.kernel_module) is t  # one table a model, filled as asked

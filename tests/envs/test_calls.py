@@ -1,4 +1,4 @@
-"""A kernel called through its address (envs.calls): the same results as a direct call,
+"""A kernel called through its address (dynamics.calls): the same results as a direct call,
 types checked when the caller compiles, and the fused step links no kernel."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from numba import njit, typeof
 from numba.core.errors import TypingError
 
 import envs  # noqa: F401  (registers the Lagrange ids)
-from envs import calls
+from dynamics import calls, stepping
 from tests.binding import bound
 
 
@@ -76,8 +76,9 @@ def slots(rt):
 def test_the_fused_step_calls_every_kernel_by_address(rows):
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", rows, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
-    module = rt.system.kernel_module
-    assert rt._calls[0][1] is (module.erk_row if rows == 1 else module.erk_rows)
+    assert rt._calls[0][1] is (stepping.erk_row if rows == 1 else stepping.erk_rows)
+    table = rt._fused_K[rt._model_table :][: stepping.TABLE_SIZE]  # the model's kernels
+    assert table[stepping.AT_DERIVATIVE] != 0
     reached = rt._fused.py_func.__globals__.values()  # what numba would link into the step
     assert [v for v in reached if hasattr(v, "py_func") and v is not rt._fused] == []
     assert "_call(addresses[" in inspect.getsource(rt._fused.py_func)
@@ -111,8 +112,9 @@ def test_a_copied_env_binds_its_own_address():
     for twin in (pickle.loads(pickle.dumps(vec)), copy.deepcopy(vec)):
         rt = twin.unwrapped._rt
         assert rt._fused_bound is None and (rt._fused_K[slots(rt)] == 0).all()
+        assert rt._fused_K[rt._model_table] == 0  # the model's table too
         bound(twin)
-        assert (rt._fused_K[slots(rt)] == vec.unwrapped._rt._fused_K[slots(rt)]).all()
+        assert (rt._fused_K == vec.unwrapped._rt._fused_K).all()
     ref = copy.deepcopy(vec)
     for _ in range(5):
         assert np.array_equal(vec.step(a)[0], bound(ref).step(a)[0])

@@ -1,21 +1,21 @@
 """A compiled kernel called through its address, so that the caller does not link it.
 
 numba links every jitted function a function calls into the caller's module and optimises
-the whole module again: the fused step (envs.fused) re-optimised the model's integrator,
-its outputs, the runtime's kernels and the task's functions at every compilation, once
-per task and form. Called through their addresses, each is compiled once for its argument
-types (the runtime's kernels once per machine, in numba's cache), and each step compiles
-only its own code (measured here, CPU: the crank-slider's step 2.7 s -> 1.7 s, its LLVM
-module 12,500 -> 3,900 lines; the integrator alone had taken the disk's from 2.9 to
-2.1-2.5 s).
+the whole module again. Called through their addresses, each kernel is compiled once for
+its argument types and each caller compiles only its own code: the model-independent
+integrator (`dynamics.stepping`) calls each model's derivative, so it is compiled once per
+machine, not once per model; the envs' fused step (envs.fused) calls the integrator, the
+runtime's kernels and the task's functions, so it no longer re-optimises them once per
+task and form (measured here, CPU: the crank-slider's step 2.7 s -> 1.7 s, its LLVM module
+12,500 -> 3,900 lines).
 
 `address(kernel, signature)` compiles (or loads) the kernel for exactly `signature` and
-gives the address of its machine code; the step reads it from its integer constants at
-run time, so numba's disk cache of the step holds no address. `call(address, label,
-arguments)` calls it with the tuple `arguments`, whose types must be those `label` (the
-kernel's name and signature, written into the step's source) names, and gives its result:
-a step whose arguments differ does not compile, rather than calling code compiled for
-other types.
+gives the address of its machine code; a caller reads it at run time (from an array), so
+numba's disk cache of the caller holds no address. `call(address, label, arguments)` calls
+it with the tuple `arguments`, whose types must be those `label` (the kernel's name and
+signature, or the signature alone for a kernel that returns nothing) names, and gives its
+result: a caller whose arguments differ does not compile, rather than calling code
+compiled for other types.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def text(signature) -> str:
 
 
 def label(kernel, signature) -> str:
-    """`kernel`'s name and argument types, as a step's source names the call."""
+    """`kernel`'s name and argument types, as a caller's source names the call."""
     fn = getattr(kernel, "py_func", kernel)
     return f"{fn.__module__}.{fn.__qualname__}({text(signature)})"
 
@@ -54,7 +54,8 @@ def address(kernel, signature) -> int:
 @intrinsic
 def call(typingctx, where, expected, arguments):
     """The result of the kernel at address `where` (int64, from `address`) called with the
-    tuple `arguments`; `expected`: its `label`, a string literal."""
+    tuple `arguments`; `expected`: its `label`, a string literal, or "(types)" alone for a
+    kernel that returns nothing (then no `address` need have been taken in this process)."""
     if not isinstance(where, types.Integer) or not isinstance(arguments, types.BaseTuple):
         return None
     if not isinstance(expected, types.StringLiteral):
@@ -63,7 +64,7 @@ def call(typingctx, where, expected, arguments):
     given = tuple(types.unliteral(t) for t in arguments)
     if not name.endswith(f"({text(given)})"):
         raise TypingError(f"call: arguments ({text(given)}) are not those of {name}")
-    returns = _RETURNS.get(name)
+    returns = types.none if name.startswith("(") else _RETURNS.get(name)
     if returns is None:
         raise TypingError(f"call: no address was taken of {name} (calls.address)")
 
