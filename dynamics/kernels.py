@@ -81,59 +81,6 @@ def point_forces_batch(T, X, P, k, F, out):
 
 
 @njit(cache=True, error_model="numpy")
-def project_batch(T, X, p, out):
-    A = np.empty((K, K + 1))  # a spare column for solve
-    z = np.empty(K)
-    for b in range(X.shape[0]):
-        for i in range(X.shape[1]):
-            out[b, i] = X[b, i]
-        project(T[b], out[b], p, A, z)
-
-
-@njit(cache=True, error_model="numpy")
-def energy_batch(T, X, p, P, out):
-    """[T, V] of every row, with the parameters p (P None) or each row's own P (N, n_p)."""
-    for b in range(X.shape[0]):
-        if P is None:
-            energy_terms(T[b], X[b], p, out[b])
-        else:
-            energy_terms(T[b], X[b], P[b], out[b])
-
-
-@njit(cache=True, error_model="numpy")
-def residual_batch(T, X, p, P, out):
-    """The constraint residual of every row, parameters as in `energy_batch`."""
-    for b in range(X.shape[0]):
-        if P is None:
-            residual(T[b], X[b], p, out[b])
-        else:
-            residual(T[b], X[b], P[b], out[b])
-
-
-@njit(cache=True, error_model="numpy")
-def power_batch(T, X, U, p, out):
-    A = np.empty((K, K + 1))  # a spare column for solve
-    z = np.empty(K)
-    for b in range(X.shape[0]):
-        accelerations(T[b], X[b], U[b], p, A, z)
-        power_out(T[b], X[b], U[b], p, z, out[b])
-
-
-@njit(cache=True, error_model="numpy")
-def outputs_batch(T, X, U, p, P, out):
-    """The model's outputs of every row, parameters as in `energy_batch`."""
-    A = np.empty((K, K + 1))  # a spare column for solve
-    z = np.empty(K)
-    for b in range(X.shape[0]):
-        if P is None:
-            accelerations(T[b], X[b], U[b], p, A, z)
-            outputs(T[b], X[b], U[b], p, z, out[b])
-        else:
-            accelerations(T[b], X[b], U[b], P[b], A, z)
-            outputs(T[b], X[b], U[b], P[b], z, out[b])
-
-
-@njit(cache=True, error_model="numpy")
 def linear_terms(t, x, u, p, A, z, Jx, Ju):
     """Fill z = [qddot, lambda], the matrix A = kkt(x), and Jx, Ju = dR/dx, dR/du of the
     residual R(x, u, z) = kkt(x) z - rhs(x, u), generated symbolically: then

@@ -35,12 +35,19 @@ SIGNATURES = {
     "derivative_lanes_p": (_V, _M, _M, _M, _M),  # (T, XS, U, P, D)
     "derivative_lanes_w": (_V, _M, _M, _M, _M, _M),  # (T, XS, U, P, W, D)
     "project": (_f8, _V, _V, _M, _V),  # (t, x, p, A, z)
+    "energy_terms": (_f8, _V, _V, _V),  # (t, x, p, out)
+    "residual": (_f8, _V, _V, _V),  # (t, x, p, out)
+    "accelerations": (_f8, _V, _V, _V, _M, _V),  # (t, x, u, p, A, z)
+    "power_out": (_f8, _V, _V, _V, _V, _V),  # (t, x, u, p, z, out)
+    "outputs": (_f8, _V, _V, _V, _V, _V),  # (t, x, u, p, z, out)
 }
-"""The argument types every model's kernel is called with here (see codegen and kernels)."""
-DERIVATIVE, DERIVATIVE_P, DERIVATIVE_W, PROJECT = (
-    f"({calls.text(s)})" for s in SIGNATURES.values()
-)  # the labels of those calls (they return nothing)
-AT_DERIVATIVE, AT_DERIVATIVE_P, AT_DERIVATIVE_W, AT_PROJECT, N_Q, N_C, K = range(7)
+"""The argument types every model's kernel is called with here and in `dynamics.rows`
+(see codegen and kernels)."""
+(DERIVATIVE, DERIVATIVE_P, DERIVATIVE_W, PROJECT, ENERGY, RESIDUAL, ACCELERATIONS, POWER,
+ OUTPUTS) = (f"({calls.text(s)})" for s in SIGNATURES.values())  # fmt: skip
+"""The labels of those calls (the kernels return nothing)."""
+(AT_DERIVATIVE, AT_DERIVATIVE_P, AT_DERIVATIVE_W, AT_PROJECT, AT_ENERGY, AT_RESIDUAL,
+ AT_ACCELERATIONS, AT_POWER, AT_OUTPUTS, N_Q, N_C, K) = range(len(SIGNATURES) + 3)  # fmt: skip
 """Where a model's table holds the addresses of its kernels, then its sizes."""
 TABLE_SIZE = K + 1
 

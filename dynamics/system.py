@@ -21,7 +21,7 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from . import cache, checks, physical, stepping
+from . import cache, checks, physical, rows, stepping
 from .methods import METHODS
 
 
@@ -355,18 +355,19 @@ class System:
 
     def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
         """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
-        self._m.residual_batch(T, X, self._p, None, out)
+        rows.residual_batch(T, X, self._p, None, out, stepping.table(self._m, "residual"))
 
     def outputs_unchecked(self, T, X, U, out: np.ndarray) -> None:
         """`outputs` on contiguous float64 rows into `out` (N, len(output_names)), columns in
         the order of `output_names`, without checks."""
-        self._m.outputs_batch(T, X, U, self._p, None, out)
+        model = stepping.table(self._m, "accelerations", "outputs")
+        rows.outputs_batch(T, X, U, self._p, None, out, model)
 
     def project(self, x, t=0.0) -> np.ndarray:
         """x with its rates moved onto the velocity constraints (kinetic-energy metric)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty_like(X)
-        self._m.project_batch(T, X, self._p, out)
+        rows.project_batch(T, X, self._p, out, stepping.table(self._m))
         return self._finite("project", out, T, X).reshape(lead + (self.state_size,))
 
     # ---- diagnostics -------------------------------------------------------------------
@@ -374,7 +375,7 @@ class System:
         """[T, V], shape (..., 2)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], 2))
-        self._m.energy_batch(T, X, self._p, None, out)
+        rows.energy_batch(T, X, self._p, None, out, stepping.table(self._m, "energy_terms"))
         return self._finite("energy", out, T, X).reshape(lead + (2,))
 
     def energy(self, x, t=0.0) -> np.ndarray:
@@ -385,7 +386,7 @@ class System:
         """B(q, t) qdot + b(q, t) of the nonholonomic constraints, shape (..., n_c)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], self.n_c))
-        self._m.residual_batch(T, X, self._p, None, out)
+        rows.residual_batch(T, X, self._p, None, out, stepping.table(self._m, "residual"))
         return self._finite("constraint_residual", out, T, X).reshape(lead + (self.n_c,))
 
     def power(self, t, x, u=None) -> np.ndarray:
@@ -393,14 +394,16 @@ class System:
         For a model with no other time dependence, d(T + V)/dt equals it."""
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], 1))
-        self._m.power_batch(T, X, U, self._p, out)
+        model = stepping.table(self._m, "accelerations", "power_out")
+        rows.power_batch(T, X, U, self._p, out, model)
         return self._finite("power", out, T, X, U).reshape(lead)
 
     def outputs(self, t, x, u=None) -> dict[str, np.ndarray]:
         """Named derived quantities (e.g. the torque that keeps a prescribed rotation)."""
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], len(self.output_names)))
-        self._m.outputs_batch(T, X, U, self._p, None, out)
+        model = stepping.table(self._m, "accelerations", "outputs")
+        rows.outputs_batch(T, X, U, self._p, None, out, model)
         out = self._finite("outputs", out, T, X, U)
         return {k: out[:, i].reshape(lead) for i, k in enumerate(self.output_names)}
 

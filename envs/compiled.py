@@ -12,6 +12,7 @@ import numpy as np
 
 from dynamics import calls, stepping
 from dynamics.cache import keep_numba_cache_true
+from dynamics.rows import outputs_batch
 from dynamics.system import BLOCK, _kernel_compiled, method_tableau
 
 from . import checks, fused, names
@@ -210,7 +211,7 @@ def plan(rt, functions: dict):
         "row_by_row": rt._row_by_row,  # erk_row, one row at a time; else erk_rows
     }
     at = next(start for name, start, *_ in whole_constants if name == "addresses")
-    rt._model_table = next(start for name, start, *_ in whole_constants
+    rt._table_slot = next(start for name, start, *_ in whole_constants
                            if name == "model_kernels")  # fmt: skip
     kinds = variable_types(rt, plan)
     rt._calls = [(at, *integrator(rt, kinds))]
@@ -271,10 +272,13 @@ def integrator(rt, kinds: dict):
 
 
 def model_kernels(rt) -> tuple[str, ...]:
-    """The model's kernels runtime `rt`'s integrator calls (`dynamics.stepping.table`)."""
+    """The model's kernels runtime `rt`'s fused step calls through the integrator and
+    `outputs_batch` (`dynamics.stepping.table`)."""
     if rt._row_by_row:
-        return ("derivative_lanes",)
-    return stepping.lane_kernels(rt.parameters.per_row, rt._pushed)
+        lanes = ("derivative_lanes",)
+    else:
+        lanes = stepping.lane_kernels(rt.parameters.per_row, rt._pushed)
+    return (*lanes, "accelerations", "outputs") if len(rt.plant.output_index) else lanes
 
 
 def compile_fused(rt, jitted: dict) -> None:
@@ -288,7 +292,7 @@ def compile_fused(rt, jitted: dict) -> None:
         return
     functions = {"_apply": apply_actions, "_advance": advance}
     if len(rt.plant.output_index):
-        functions["_outputs"] = rt.system.kernel_module.outputs_batch
+        functions["_outputs"] = outputs_batch
     functions.update(_observe=observe, **jitted, _finish=finish)
     plan_, rt._fused_C, rt._fused_K = plan(rt, functions)
     types = dict(zip(("_Rows", "_Actions", "_Goal"), rt._types))
@@ -308,7 +312,7 @@ def actions_type():
 def bind_fused(rt):
     """Runtime `rt`'s fused step's machine code (compiled or loaded from numba's cache on
     first use) for float64 actions of any layout (`actions_type`), bound as `bind` does."""
-    at = rt._model_table  # first the model's kernels, which the integrator calls
+    at = rt._table_slot  # first the model's kernels, which the integrator calls
     table = stepping.table(rt.system.kernel_module, *model_kernels(rt))
     rt._fused_K[at : at + len(table)] = table
     for slot, kernel, types in rt._calls:  # compiled (or loaded) for the step's arguments

@@ -162,8 +162,8 @@ def _header(plan: dict) -> list[str]:
         "from envs.buffers import column, matrix, put_column, put_rows",
         "",
         "# Every kernel is called through its address (dynamics.calls), from K_'s",
-        "# `addresses`: the integrator (dynamics.stepping, which reads the model's kernels",
-        "# from `model_kernels`) and the model's _outputs, the runtime's _apply, _advance,",
+        "# `addresses`: the integrator (dynamics.stepping) and _outputs (dynamics.rows), which",
+        "# read the model's kernels from `model_kernels`, the runtime's _apply, _advance,",
         "# _observe and _finish, the task's _term_k, _success, _failure and _derived_k. The",
         "# module's name hashes all of their code (envs.fused.build).",
         "",
@@ -235,7 +235,7 @@ def _body(plan: dict) -> list[str]:
 ARGUMENTS = {
     "_apply": "actions, input_mid, input_half, actuated, A, U",
     "_advance": "X, X_next, limits, diverged, T, dt, steps, horizon, steps_left",
-    "_outputs": "T, X, U, one_params, row_params, Y",
+    "_outputs": "T, X, U, one_params, row_params, Y, model_kernels",
     "_observe": "x, G, ops, obs_low, obs_high, obs64",
     "_finish": "terms, term_low, term_high, failed, diverged, steps_left, lowest, R, "
     "terminated, success, obs64, obs_low, O",

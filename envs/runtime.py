@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from dynamics import stepping
+from dynamics.rows import energy_batch, outputs_batch, residual_batch
 from dynamics.system import _kernel_compiled, method_tableau
 
 from . import compiled
@@ -143,8 +144,9 @@ class Runtime:
         # every copy has p; numba prunes that branch, so each form compiles only its own)
         self._p_shared, self._P = store.nominal, store.P
         module = self.system.kernel_module
-        self._energy = warm(module.energy_batch, self.T, self.X, self._p_shared, self._P,
-                            self._E)  # fmt: skip
+        self._table = stepping.table(module, "energy_terms")  # the model's kernels' addresses
+        self._energy = warm(energy_batch, self.T, self.X, self._p_shared, self._P, self._E,
+                            self._table)  # fmt: skip
         # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
         # its `erk_rows` would: the same operations), in the fused step and without it
         self._row_by_row = self.n < stepping.LANES_FROM and not self._pushed
@@ -166,7 +168,7 @@ class Runtime:
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
                   "_energy", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
-                  "_P", "_fused_pending"):  # fmt: skip
+                  "_P", "_table", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -345,8 +347,8 @@ class Runtime:
         if not len(plant.output_index):
             return self.X
         if self.parameters.per_row:
-            self.system.kernel_module.outputs_batch(self.T, self.X, self.U, self._p_shared,
-                                                    self._P, self._Y)  # fmt: skip
+            model = stepping.table(self.system.kernel_module, "accelerations", "outputs")
+            outputs_batch(self.T, self.X, self.U, self._p_shared, self._P, self._Y, model)
         else:
             self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
         n_x = self.system.state_size
@@ -357,20 +359,24 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self._energy(self.T, self.X, self._p_shared, self._P, self._E)
+        self._energy_of_rows()
         return self._E.sum(axis=1)
+
+    def _energy_of_rows(self) -> None:
+        """_E <- [T, V] of every row."""
+        self._energy(self.T, self.X, self._p_shared, self._P, self._E, self._table)
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._energy(self.T, self.X, self._p_shared, self._P, self._E)
+        self._energy_of_rows()
         kinetic, potential = self._E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
         if self.parameters.per_row:
-            self.system.kernel_module.residual_batch(self.T, self.X, self._p_shared, self._P,
-                                                     self._C)  # fmt: skip
+            model = stepping.table(self.system.kernel_module, "residual")
+            residual_batch(self.T, self.X, self._p_shared, self._P, self._C, model)
         else:
             self.system.constraint_residual_unchecked(self.T, self.X, self._C)
         return self._C.copy()

@@ -77,7 +77,7 @@ def test_the_fused_step_calls_every_kernel_by_address(rows):
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", rows, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
     assert rt._calls[0][1] is (stepping.erk_row if rows == 1 else stepping.erk_rows)
-    table = rt._fused_K[rt._model_table :][: stepping.TABLE_SIZE]  # the model's kernels
+    table = rt._fused_K[rt._table_slot :][: stepping.TABLE_SIZE]  # the model's kernels
     assert table[stepping.AT_DERIVATIVE] != 0
     reached = rt._fused.py_func.__globals__.values()  # what numba would link into the step
     assert [v for v in reached if hasattr(v, "py_func") and v is not rt._fused] == []
@@ -112,7 +112,7 @@ def test_a_copied_env_binds_its_own_address():
     for twin in (pickle.loads(pickle.dumps(vec)), copy.deepcopy(vec)):
         rt = twin.unwrapped._rt
         assert rt._fused_bound is None and (rt._fused_K[slots(rt)] == 0).all()
-        assert rt._fused_K[rt._model_table] == 0  # the model's table too
+        assert rt._fused_K[rt._table_slot] == 0  # the model's table too
         bound(twin)
         assert (rt._fused_K == vec.unwrapped._rt._fused_K).all()
     ref = copy.deepcopy(vec)
