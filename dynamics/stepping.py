@@ -20,8 +20,6 @@ each row's forcing (external pushes). numba prunes the branches on `P is None` a
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from numba import njit, prange
 from numba.core import types
@@ -57,24 +55,33 @@ loops' set-up per stage costs more than the arithmetic of a few rows (the single
 150 ns against 20 ns per derivative evaluation)."""
 
 _SLOTS = {name: slot for slot, name in enumerate(SIGNATURES)}
-_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def table(module, *kernels: str) -> np.ndarray:
-    """The int64 table the integrator reads model `module` from: the addresses of its
-    `kernels` (names of SIGNATURES; `project` too when the model has constraints), each
-    compiled or loaded for its signature on first request, then n_q, n_c and K. One table
-    a module, for as long as it lives (an address is of code the module holds)."""
-    t = _TABLES.get(module)
-    if t is None:
-        t = np.zeros(TABLE_SIZE, np.int64)
+    """The int64 table the model-independent kernels read model `module` from: the
+    addresses of its `kernels` (names of SIGNATURES; `project` too when the model has
+    constraints), each compiled or loaded for its signature on first request, then n_q, n_c
+    and K. One table a module, kept on the module (`_ADDRESSES`) for as long as it lives:
+    an address is of code the module holds. A fraction of a microsecond once filled (the
+    envs call it at every step)."""
+    try:
+        t, filled = module._ADDRESSES
+    except AttributeError:
+        t, filled = np.zeros(TABLE_SIZE, np.int64), set()
         t[N_Q], t[N_C], t[K] = module.N_Q, module.N_C, module.K
-        _TABLES[module] = t
-    for name in (*kernels, "project") if module.N_C else kernels:
-        slot = _SLOTS[name]
-        if not t[slot]:
-            t[slot] = calls.address(getattr(module, name), SIGNATURES[name])
+        if module.N_C:
+            _fill(module, t, filled, "project")
+        module._ADDRESSES = t, filled
+    if not filled.issuperset(kernels):
+        for name in kernels:
+            _fill(module, t, filled, name)
     return t
+
+
+def _fill(module, t: np.ndarray, filled: set, name: str) -> None:
+    if name not in filled:
+        t[_SLOTS[name]] = calls.address(getattr(module, name), SIGNATURES[name])
+        filled.add(name)
 
 
 def lane_kernels(per_row: bool, pushed: bool) -> tuple[str, ...]:

@@ -144,9 +144,12 @@ class Runtime:
         # every copy has p; numba prunes that branch, so each form compiles only its own)
         self._p_shared, self._P = store.nominal, store.P
         module = self.system.kernel_module
-        self._table = stepping.table(module, "energy_terms")  # the model's kernels' addresses
+        # the model's kernels' addresses, for the energy and the constraints' residual in info
+        self._table = stepping.table(module, "energy_terms", *("residual",) * (module.N_C > 0))
         self._energy = warm(energy_batch, self.T, self.X, self._p_shared, self._P, self._E,
                             self._table)  # fmt: skip
+        self._residual = (warm(residual_batch, self.T, self.X, self._p_shared, self._P,
+                               self._C, self._table) if module.N_C else None)  # fmt: skip
         # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
         # its `erk_rows` would: the same operations), in the fused step and without it
         self._row_by_row = self.n < stepping.LANES_FROM and not self._pushed
@@ -168,7 +171,7 @@ class Runtime:
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
                   "_energy", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
-                  "_P", "_table", "_fused_pending"):  # fmt: skip
+                  "_P", "_table", "_residual", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -374,11 +377,8 @@ class Runtime:
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
-        if self.parameters.per_row:
-            model = stepping.table(self.system.kernel_module, "residual")
-            residual_batch(self.T, self.X, self._p_shared, self._P, self._C, model)
-        else:
-            self.system.constraint_residual_unchecked(self.T, self.X, self._C)
+        if self._residual is not None:
+            self._residual(self.T, self.X, self._p_shared, self._P, self._C, self._table)
         return self._C.copy()
 
     def reward_terms(self, row: int | None = None):
