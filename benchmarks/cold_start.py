@@ -41,13 +41,16 @@ machine), two rounds ago, at the start of this round and after it:
 | make, reset and first step, in all (CPU s) | 13.0 | 6.0 | 3.0 |
 
 The rest of `make` (about 0.5 s) is the derivation, code generation and the imports. What
-the first step still waits for is the model's integrator (`erk_row` and the derivative it
-links, `derivative_lanes`): the step of separate calls runs it while the fused step
-compiles. (The next round's fused step calls every kernel through its address and
-compiles in 0.7-1.3 s of CPU; a single env binds it after 2,000 steps, so the first step
-does not wait for it: make + reset + first step measured 2.59 s for the cart-pole and
-2.87 s for the Furuta pendulum, 1.02 times the round before, with the project's
-bytecode compiled; 3.1-3.5 s in both trees where Python writes no bytecode.)
+the first step still waited for was the model's integrator (`erk_row` and the derivative it
+linked, `derivative_lanes`). The next round's fused step calls every kernel through its
+address and compiles in 0.7-1.3 s of CPU, in the background after 2,000 steps. Then the
+integrator and the kernels over rows became one for every model (`dynamics/stepping.py`,
+`dynamics/rows.py`: compiled once per machine, calling the model's kernels through their
+addresses): the cart-pole's compilations for make + reset + first step, CPU, 2.16 -> 1.36 s
+(`erk_row` 0.68 s and `energy_batch` 0.14 s gone; left: `derivative_lanes` 0.34 s,
+`energy_terms` 0.38 s, the task's functions 0.44 s), and make + reset + first step 2.76 ->
+1.94 s (the Furuta pendulum 2.99 -> 2.21 s; medians of 3 alternating rounds, 2026-11-26,
+where Python writes no bytecode).
 """
 
 from __future__ import annotations
