@@ -1,13 +1,13 @@
 """Model-independent numba kernels, appended to every generated model module.
 
-They call the generated `kkt`, `kkt_matrix`, `residual`, `energy_terms`, `power_out`,
-`outputs` and read the constants N_Q, N_C, K, N_OUT of that module, so this file is a
-template and is never imported by itself; what they share with every model (`solve`,
-`vsin`, ...) is imported from `lanes.py`, compiled once per machine. One kernel serves
-the shared parameters and each row's own: `P` None or an array (numba prunes the other
-branch before compiling), so a form compiles only what it calls, when first called. Everything is batched over a leading axis and
-allocates its work arrays once per call. No kernel raises on bad values (division by zero
-follows numpy's rules): a row whose result is undefined comes back NaN, for the caller to see.
+They call the generated `kkt`, `kkt_matrix`, `residual` and `point_forces` and read the
+constants N_Q, N_C, K of that module, so this file is a template and is never imported by
+itself; what they share with every model (`solve`, `vsin`, ...) is imported from
+`lanes.py`, and the integrator and the kernels over rows that only call the model's
+kernels (`stepping.py`, `rows.py`) take them by address: both compiled once per machine.
+Everything is batched over a leading axis and allocates its work arrays once per call. No
+kernel raises on bad values (division by zero follows numpy's rules): a row whose result
+is undefined comes back NaN, for the caller to see.
 """
 
 # ruff: noqa: F821, E501
