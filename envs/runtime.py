@@ -145,7 +145,8 @@ class Runtime:
         self._p_shared, self._P = store.nominal, store.P
         module = self.system.kernel_module
         # the model's kernels' addresses, for the energy and the constraints' residual in info
-        self._table = stepping.table(module, "energy_terms", *("residual",) * (module.N_C > 0))
+        kernels = ("energy_terms", "residual") if module.N_C else ("energy_terms",)
+        self._table = stepping.table(module, *kernels)
         self._energy = warm(energy_batch, self.T, self.X, self._p_shared, self._P, self._E,
                             self._table)  # fmt: skip
         self._residual = (warm(residual_batch, self.T, self.X, self._p_shared, self._P,

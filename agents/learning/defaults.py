@@ -21,6 +21,15 @@ What a task declares sets up its learner (`derived`):
   PPO then steps about a third slower (the Segway: 2,450 against 3,800 env-steps/s here),
   and learns more per step (seed 0, 10 minutes: 55 % of 20 episodes shaped, 10 %
   without), so it is derived there too.
+- **success bonus**: `SUCCESS_BONUS` (a tenth of one step's reward range) at every step
+  whose state is in the task's success set (`shaping: {success: B}`). Unlike the potential
+  it changes what is optimal, towards the set the check scores: a user's reward is often
+  nearly flat there (the Segway's turn term, -0.1 psi_dot^2, prices a turn of 1 rad/s at
+  0.2 % of a step's range while success asks |psi_dot| < 0.1; its agents rode while
+  turning). PPO, 10 minutes, with the bonus against without: the Segway 75 %, 65 %, 0 % of
+  20 fresh episodes (seeds 0-2; 55 %, 5 % before, seeds 0-1), the VTOL's seeds 1 and 2
+  90 % and 95 % in 27-29 s (50 % and 20 %, not in 600 s), the cart-pole's seed 2 100 % in
+  12 s (55 %); every other example's three seeds 70-100 %, all but one at 90 % or more.
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
@@ -43,6 +52,9 @@ TAU_FRACTION = 0.2
 GAMMA_MIN, GAMMA_MAX = 0.95, 0.998
 SHAPING_WEIGHT = 0.5
 """The LQR potential's range as a fraction of one episode's discounted return range."""
+SUCCESS_BONUS = 0.1
+"""The training reward's bonus per step inside the success set, as a fraction of one step's
+reward range (after `reward_scale`)."""
 
 
 def episode_steps(env_id: str, task) -> int:
@@ -91,7 +103,7 @@ def derived(env_id: str, task) -> dict:
     span = reward_span(task, env_id)
     if task.terms and span > 0:
         out["reward_scale"] = float(f"{1.0 / span:.6g}")
-    out["shaping"] = {"lqr": SHAPING_WEIGHT}
+    out["shaping"] = {"lqr": SHAPING_WEIGHT, "success": SUCCESS_BONUS}
     return out
 
 
@@ -100,6 +112,11 @@ def describe(hp: dict) -> str:
     parts = [f"gamma {hp['gamma']:g}"] if "gamma" in hp else []
     if hp.get("reward_scale"):
         parts.append(f"rewards x {hp['reward_scale']:.3g} (1 / the declared per-step span)")
-    shaping = (hp.get("shaping") or {}).get("lqr")
-    parts.append(f"LQR potential shaping {shaping:g}" if shaping else "no shaping")
+    shaping = hp.get("shaping") or {}
+    if shaping.get("lqr"):
+        parts.append(f"LQR potential shaping {shaping['lqr']:g}")
+    if shaping.get("success"):
+        parts.append(f"success bonus {shaping['success']:g} a step")
+    if not (shaping.get("lqr") or shaping.get("success")):
+        parts.append("no shaping")
     return ", ".join(parts)

@@ -204,9 +204,16 @@ def _handover(v):
 
 
 def _shaping(v):
-    if not isinstance(v, dict) or set(v) != {"lqr"}:
-        raise Bad("{lqr: W} (W >= 0: the LQR potential's weight, 0 turns it off)")
-    return {"lqr": real(0.0, 100.0)(v["lqr"])}
+    form = Bad(
+        "{lqr: W, success: B} (W in [0, 100]: the LQR potential's weight; B in [0, 100]: "
+        "the bonus per step inside the success set; 0 turns either off, an absent key is 0)"
+    )
+    if not isinstance(v, dict) or not v or not set(v) <= {"lqr", "success"}:
+        raise form
+    try:
+        return {k: real(0.0, 100.0)(v[k]) for k in ("lqr", "success") if k in v}
+    except Bad:
+        raise form from None
 
 
 def _randomize(v):

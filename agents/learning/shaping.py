@@ -1,5 +1,7 @@
 """The training env's reward: the task's reward on a declared scale, plus potential-based
-shaping from LQR's cost-to-go (Ng, Harada and Russell 1999).
+shaping from LQR's cost-to-go (Ng, Harada and Russell 1999) and a bonus at every step
+inside the task's success set (agents.learning.defaults: unlike the potential, the bonus
+moves the optimum, towards the set that success is scored on).
 
 `TaskRewardVecEnv` wraps the training VecEnv (inside VecNormalize, outside the episode
 monitor, so the logged returns stay the env's own and the registered reward is untouched):
@@ -103,11 +105,16 @@ def lqr_potential(env_id: str, weight: float, gamma: float, horizon: int):
 
 class TaskRewardVecEnv(VecEnvWrapper):
     """Training env: rewards times `scale`, plus `gamma Phi(s') - Phi(s)` when `potential`
-    is given (see the module docstring). `shaped_steps` counts the steps shaped."""
+    is given, plus `bonus` at every step whose state is in the task's success set (see the
+    module docstring)."""
 
-    def __init__(self, venv: VecEnv, scale: float = 1.0, potential=None, gamma: float = 0.99):
+    def __init__(
+        self, venv: VecEnv, scale: float = 1.0, potential=None, gamma: float = 0.99,
+        bonus: float = 0.0,
+    ):  # fmt: skip
         super().__init__(venv)
         self.scale, self.potential, self.gamma = float(scale), potential, float(gamma)
+        self.bonus = float(bonus)
         self._phi: np.ndarray | None = None
 
     def reset(self):
@@ -134,4 +141,6 @@ class TaskRewardVecEnv(VecEnvWrapper):
                         after[i] = 0.0  # a terminal state's potential
             rewards = rewards + self.gamma * after - self._phi
             self._phi = phi
+        if self.bonus:
+            rewards = rewards + self.bonus * np.array([bool(i.get("is_success")) for i in infos])
         return obs, rewards.astype(np.float32), dones, infos

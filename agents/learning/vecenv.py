@@ -172,8 +172,8 @@ def _normalize_kwargs(hp: dict) -> dict | None:
 
 
 def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
-    """`venv` with the reward scale and LQR shaping the hyperparameters ask for
-    (agents.learning.shaping; the registered reward is untouched), or `venv` itself. Warns first
+    """`venv` with the reward scale, LQR shaping and success bonus the hyperparameters ask
+    for (agents.learning.shaping; the registered reward is untouched), or `venv` itself. Warns first
     when the task's reward is flat inside the tolerance of its success set
     (agents.scoring.diagnosis)."""
     from ..common import task_of
@@ -183,16 +183,17 @@ def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
 
     scale = float(hp.get("reward_scale", 1.0))
     weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
+    bonus = float((hp.get("shaping") or {}).get("success", 0.0))
     if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
-        warn_if_flat(env_id, shaped=bool(weight))
-    if scale == 1.0 and not weight:
+        warn_if_flat(env_id, shaped=bool(weight or bonus))
+    if scale == 1.0 and not weight and not bonus:
         return venv
     gamma = float(hp.get("gamma", 0.99))
     potential = None
     if weight:
         horizon = episode_steps(env_id, task_of(env_id))
         potential = lqr_potential(env_id, weight, gamma, horizon)
-    return TaskRewardVecEnv(venv, scale, potential, gamma)
+    return TaskRewardVecEnv(venv, scale, potential, gamma, bonus)
 
 
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):

@@ -125,11 +125,11 @@ def flat_reward_warning(env_id: str, shaped: bool = True) -> str | None:
         "the reward hardly tells an agent to enter the set (agents may settle just outside "
         "it); "
         + (
-            "the LQR shaping of training (agents.learning.shaping) gives it a slope, or add a "
-            "term that grows towards the goal."
+            "the LQR shaping of training (agents.learning.shaping) gives it a slope and its "
+            "success bonus pays for being inside, or add a term that grows towards the goal."
             if shaped
             else "this training has no LQR shaping (the task's own settings leave it out): add "
-            "a term that grows towards the goal, or ask for shaping ({lqr: 0.5})."
+            "a term that grows towards the goal, or ask for shaping ({lqr: 0.5, success: 0.1})."
         )
     )
 

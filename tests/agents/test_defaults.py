@@ -42,7 +42,8 @@ def test_reward_scale_makes_one_steps_range_one():
 
 def test_derived_values_sit_between_the_yaml_default_and_the_task():
     hp = hparams.load("ppo", FURUTA)  # the example declares no hyperparameters
-    assert hp["gamma"] == pytest.approx(0.99) and hp["shaping"] == {"lqr": 0.5}
+    assert hp["gamma"] == pytest.approx(0.99)
+    assert hp["shaping"] == {"lqr": 0.5, "success": 0.1}
     task = gym.spec(ACROBOT).kwargs["task"]
     assert task.hyperparams["ppo"]["gamma"] == 0.998
     acro = hparams.load("ppo", ACROBOT)
@@ -62,6 +63,39 @@ def test_shaping_off_and_on_in_the_training_env():
     off = {**hp, "normalize": False, "shaping": {"lqr": 0.0}, "reward_scale": 1.0}
     train, evaluation = make_envs(BEAD, off, 2, 0, "auto", 1)
     assert not isinstance(train, TaskRewardVecEnv)  # nothing to do: not wrapped
+    train.close(), evaluation.close()
+
+
+class _Blinking(gym.Env):
+    """Succeeds at every other step: is_success True at steps 2, 4, ..."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,))
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,))
+
+    def reset(self, *, seed=None, options=None):
+        self.t = 0
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        self.t += 1
+        return np.zeros(1, np.float32), -1.0, False, False, {"is_success": self.t % 2 == 0}
+
+
+def test_the_success_bonus_is_paid_at_the_steps_inside_the_success_set():
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = TaskRewardVecEnv(DummyVecEnv([_Blinking]), scale=0.5, bonus=0.25)
+    venv.reset()
+    rewards = [venv.step(np.zeros((1, 1), np.float32))[1][0] for _ in range(4)]
+    assert rewards == [-0.5, -0.25, -0.5, -0.25]  # scale x -1, plus the bonus when inside
+
+
+def test_a_bonus_alone_wraps_the_training_env_and_not_the_evaluation_env():
+    hp = {**hparams.load("ppo", BEAD), "normalize": False, "reward_scale": 1.0}
+    train, evaluation = make_envs(BEAD, {**hp, "shaping": {"success": 0.1}}, 2, 0, "auto", 1)
+    assert isinstance(train, TaskRewardVecEnv) and train.bonus == 0.1
+    assert train.potential is None
+    assert isinstance(evaluation, TaskRewardVecEnv) and evaluation.bonus == 0.0
     train.close(), evaluation.close()
 
 
@@ -150,7 +184,7 @@ def test_shaping_is_derived_where_the_operating_point_follows_the_state():
     import examples.segway as segway
 
     assert callable(segway.TASK.operating_point)
-    assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5}
+    assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5, "success": 0.1}
 
 
 def test_flat_reward_warning_names_the_remedy_the_training_has():
@@ -160,3 +194,15 @@ def test_flat_reward_warning_names_the_remedy_the_training_has():
     plain = flat_reward_warning(FURUTA, shaped=False)
     assert "gives it a slope" in shaped and "no LQR shaping" not in shaped
     assert "no LQR shaping" in plain and "gives it a slope" not in plain
+
+
+@pytest.mark.parametrize(
+    "shaping",
+    [{"lqr": 0.5, "bonus": 0.1}, {}, {"success": -1.0}, {"success": float("nan")}, 0.5],
+)
+def test_a_bad_shaping_setting_names_its_form(shaping):
+    with pytest.raises(hparams.UserError, match=r"shaping must be \{lqr: W, success: B\}"):
+        hparams.check_entries({"shaping": shaping}, "my.yml (default)")
+    assert hparams.check_entries({"shaping": {"success": 0.2}}, "f") == {
+        "shaping": {"success": 0.2}
+    }
