@@ -1,8 +1,9 @@
-"""The model's per-row kernels over rows (energy, constraint residual, power, outputs,
-projection), compiled once per machine: each calls the model's kernel through its address
-in the model's table (`dynamics.stepping.table`), as the integrator does, instead of a
-copy per model that links it (about 0.1-0.5 s of CPU a model and kernel). The same
-operations as the model's kernel called row by row, so the same results bit for bit.
+"""The model's per-row kernels over rows (energy and constraint residual: `state_batch`;
+power, outputs, projection), compiled once per machine: each calls the model's kernel
+through its address in the model's table (`dynamics.stepping.table`), as the integrator
+does, instead of a copy per model that links it (about 0.1-0.5 s of CPU a model and
+kernel). The same operations as the model's kernel called row by row, so the same results
+bit for bit.
 
 Rows are float64 and contiguous: T (N,), X (N, 2n), U (N, n_u), out (N, width); the
 parameters p (n_p,) are one vector for every row, or P (N, n_p) each row's own (P None:
@@ -18,11 +19,9 @@ from . import calls
 from .stepping import (
     ACCELERATIONS,
     AT_ACCELERATIONS,
-    AT_ENERGY,
     AT_OUTPUTS,
     AT_POWER,
     AT_PROJECT,
-    AT_RESIDUAL,
     ENERGY,
     N_C,
     OUTPUTS,
@@ -32,25 +31,21 @@ from .stepping import (
     K,
 )
 
-
-@njit(cache=True, error_model="numpy")
-def energy_batch(T, X, p, P, out, model):
-    """[T, V] of every row (the model's `energy_terms`)."""
-    for b in range(X.shape[0]):
-        if P is None:
-            calls.call(model[AT_ENERGY], ENERGY, (T[b], X[b], p, out[b]))
-        else:
-            calls.call(model[AT_ENERGY], ENERGY, (T[b], X[b], P[b], out[b]))
+STATE = ENERGY
+"""The label of a call of `energy_terms` or `residual`: the same argument types."""
+assert STATE == RESIDUAL
 
 
 @njit(cache=True, error_model="numpy")
-def residual_batch(T, X, p, P, out, model):
-    """The velocity-constraint residual of every row (the model's `residual`)."""
+def state_batch(T, X, p, P, out, model, kernel):
+    """out[b] <- the model's kernel of the state, (t, x, p, out), at `model[kernel]` of
+    every row: its `energy_terms` ([T, V], kernel AT_ENERGY) or its velocity-constraint
+    `residual` (AT_RESIDUAL); both have that signature, so one compilation serves both."""
     for b in range(X.shape[0]):
         if P is None:
-            calls.call(model[AT_RESIDUAL], RESIDUAL, (T[b], X[b], p, out[b]))
+            calls.call(model[kernel], STATE, (T[b], X[b], p, out[b]))
         else:
-            calls.call(model[AT_RESIDUAL], RESIDUAL, (T[b], X[b], P[b], out[b]))
+            calls.call(model[kernel], STATE, (T[b], X[b], P[b], out[b]))
 
 
 @njit(cache=True, error_model="numpy")

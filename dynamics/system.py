@@ -355,7 +355,8 @@ class System:
 
     def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
         """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
-        rows.residual_batch(T, X, self._p, None, out, stepping.table(self._m, "residual"))
+        model = stepping.table(self._m, "residual")
+        rows.state_batch(T, X, self._p, None, out, model, stepping.AT_RESIDUAL)
 
     def outputs_unchecked(self, T, X, U, out: np.ndarray) -> None:
         """`outputs` on contiguous float64 rows into `out` (N, len(output_names)), columns in
@@ -375,7 +376,8 @@ class System:
         """[T, V], shape (..., 2)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], 2))
-        rows.energy_batch(T, X, self._p, None, out, stepping.table(self._m, "energy_terms"))
+        model = stepping.table(self._m, "energy_terms")
+        rows.state_batch(T, X, self._p, None, out, model, stepping.AT_ENERGY)
         return self._finite("energy", out, T, X).reshape(lead + (2,))
 
     def energy(self, x, t=0.0) -> np.ndarray:
@@ -386,7 +388,8 @@ class System:
         """B(q, t) qdot + b(q, t) of the nonholonomic constraints, shape (..., n_c)."""
         T, X, _, lead = self._batch(t, x, need_u=False)
         out = np.empty((X.shape[0], self.n_c))
-        rows.residual_batch(T, X, self._p, None, out, stepping.table(self._m, "residual"))
+        model = stepping.table(self._m, "residual")
+        rows.state_batch(T, X, self._p, None, out, model, stepping.AT_RESIDUAL)
         return self._finite("constraint_residual", out, T, X).reshape(lead + (self.n_c,))
 
     def power(self, t, x, u=None) -> np.ndarray:

@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from dynamics import stepping
-from dynamics.rows import energy_batch, outputs_batch, residual_batch
+from dynamics.rows import outputs_batch, state_batch
 from dynamics.system import _kernel_compiled, method_tableau
 
 from . import compiled
@@ -147,10 +147,9 @@ class Runtime:
         # the model's kernels' addresses, for the energy and the constraints' residual in info
         kernels = ("energy_terms", "residual") if module.N_C else ("energy_terms",)
         self._table = stepping.table(module, *kernels)
-        self._energy = warm(energy_batch, self.T, self.X, self._p_shared, self._P, self._E,
-                            self._table)  # fmt: skip
-        self._residual = (warm(residual_batch, self.T, self.X, self._p_shared, self._P,
-                               self._C, self._table) if module.N_C else None)  # fmt: skip
+        # one kernel for both (`dynamics.rows.state_batch`), bound for these arrays
+        self._of_state = warm(state_batch, self.T, self.X, self._p_shared, self._P, self._E,
+                              self._table, stepping.AT_ENERGY)  # fmt: skip
         # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
         # its `erk_rows` would: the same operations), in the fused step and without it
         self._row_by_row = self.n < stepping.LANES_FROM and not self._pushed
@@ -171,8 +170,8 @@ class Runtime:
         state = self.__dict__.copy()
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
-                  "_energy", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
-                  "_P", "_table", "_residual", "_fused_pending"):  # fmt: skip
+                  "_of_state", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
+                  "_P", "_table", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -368,7 +367,8 @@ class Runtime:
 
     def _energy_of_rows(self) -> None:
         """_E <- [T, V] of every row."""
-        self._energy(self.T, self.X, self._p_shared, self._P, self._E, self._table)
+        self._of_state(self.T, self.X, self._p_shared, self._P, self._E, self._table,
+                       stepping.AT_ENERGY)  # fmt: skip
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
@@ -378,8 +378,9 @@ class Runtime:
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
-        if self._residual is not None:
-            self._residual(self.T, self.X, self._p_shared, self._P, self._C, self._table)
+        if self.system.n_c:
+            self._of_state(self.T, self.X, self._p_shared, self._P, self._C, self._table,
+                           stepping.AT_RESIDUAL)  # fmt: skip
         return self._C.copy()
 
     def reward_terms(self, row: int | None = None):

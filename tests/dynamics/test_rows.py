@@ -23,7 +23,7 @@ def test_energy_and_residual_are_the_model_s_kernels_row_by_row(name):
     assert np.array_equal(system.constraint_residual(x), residual)
     # each row's own parameters: the same numbers when every row has p
     out, P = np.empty((N, 2)), np.tile(p, (N, 1))
-    rows.energy_batch(T, x, p, P, out, stepping.table(m, "energy_terms"))
+    rows.state_batch(T, x, p, P, out, stepping.table(m, "energy_terms"), stepping.AT_ENERGY)
     assert np.array_equal(out, energy)
 
 
