@@ -147,9 +147,13 @@ class Runtime:
         # the model's kernels' addresses, for the energy and the constraints' residual in info
         kernels = ("energy_terms", "residual") if module.N_C else ("energy_terms",)
         self._table = stepping.table(module, *kernels)
-        # one kernel for both (`dynamics.rows.state_batch`), bound for these arrays
-        self._of_state = warm(state_batch, self.T, self.X, self._p_shared, self._P, self._E,
-                              self._table, stepping.AT_ENERGY)  # fmt: skip
+        # one kernel for both (`dynamics.rows.state_batch`), bound for these arrays, and
+        # the arguments of each (the arrays are the buffers' views, never swapped)
+        self._energy_args = (self.T, self.X, self._p_shared, self._P, self._E, self._table,
+                             stepping.AT_ENERGY)  # fmt: skip
+        self._residual_args = (*self._energy_args[:4], self._C, self._table,
+                               stepping.AT_RESIDUAL)  # fmt: skip
+        self._of_state = warm(state_batch, *self._energy_args)
         # fewer rows than the model's vector lanes take step one at a time (`erk_row`, as
         # its `erk_rows` would: the same operations), in the fused step and without it
         self._row_by_row = self.n < stepping.LANES_FROM and not self._pushed
@@ -171,7 +175,7 @@ class Runtime:
         for k in ("_reward", "_success", "_failure", "_derived", "_observe", "_advance",
                   "_finish", "_fused", "_fused_bound", "_fused_C", "_fused_K", "_calls",
                   "_of_state", "_types", "_E0", "_model_params", "_task_params", "_p_shared",
-                  "_P", "_table", "_fused_pending"):  # fmt: skip
+                  "_P", "_table", "_energy_args", "_residual_args", "_fused_pending"):  # fmt: skip
             state.pop(k, None)
         for name in (*(f for f, _ in self._floats), *self._bools):  # views of the buffers
             state.pop(name)
@@ -362,25 +366,19 @@ class Runtime:
     # ---- diagnostics ---------------------------------------------------------------------
     def energy(self) -> np.ndarray:
         """T + V of every row, J."""
-        self._energy_of_rows()
+        self._of_state(*self._energy_args)
         return self._E.sum(axis=1)
-
-    def _energy_of_rows(self) -> None:
-        """_E <- [T, V] of every row."""
-        self._of_state(self.T, self.X, self._p_shared, self._P, self._E, self._table,
-                       stepping.AT_ENERGY)  # fmt: skip
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._energy_of_rows()
+        self._of_state(*self._energy_args)
         kinetic, potential = self._E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
         """The velocity-constraint residual of every row (N, n_c)."""
         if self.system.n_c:
-            self._of_state(self.T, self.X, self._p_shared, self._P, self._C, self._table,
-                           stepping.AT_RESIDUAL)  # fmt: skip
+            self._of_state(*self._residual_args)
         return self._C.copy()
 
     def reward_terms(self, row: int | None = None):
