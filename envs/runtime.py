@@ -307,21 +307,16 @@ class Runtime:
         step = self._fused_bound
         return compiled.fused_for(self) if step is None else step
 
-    def _erk_row_args(self, r: int) -> tuple:
-        """`stepping.erk_row`'s arguments that advance row r into `_X_next`."""
-        P = self._model_params
-        p = P[r] if self.parameters.per_row else P
-        h = self.control_period / self.substeps
-        model = stepping.table(self.system.kernel_module, "derivative_lanes")
-        return (self.T, self.X, self.U, p, h, self.substeps, *self._tableau, self._X_next, r,
-                model)  # fmt: skip
-
     def _integrate(self, perturbed) -> None:
         """The step of separate calls: X_next from X under U, with the pushes' forces."""
         s, args = self.system, (self.control_period, self.substeps, self._X_next, self.integrator)
         if self._row_by_row or (self._one_by_one and self._fused_bound is None):
-            for r in range(self.n):
-                stepping.erk_row(*self._erk_row_args(r))
+            P, per_row = self._model_params, self.parameters.per_row
+            h = self.control_period / self.substeps
+            model = stepping.table(s.kernel_module, "derivative_lanes")
+            for r in range(self.n):  # stepping.erk_row advances row r into _X_next
+                stepping.erk_row(self.T, self.X, self.U, P[r] if per_row else P, h,
+                                 self.substeps, *self._tableau, self._X_next, r, model)  # fmt: skip
         elif self._pushed:
             s.step_pushed_unchecked(self.T, self.X, self.U, self._model_params, perturbed[1], *args)
         elif self.parameters.per_row:
