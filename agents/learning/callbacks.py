@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import Logger, make_output_format
 from stable_baselines3.common.callbacks import (
     BaseCallback,
     CallbackList,
@@ -308,6 +309,7 @@ def learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progre
     bar = None
     if progress:
         bar = ProgressBarCallback() if sys.stderr.isatty() else LogProgress(progress)
+    model.set_logger(quiet_logger(model.verbose))
     try:
         model.learn(
             total - model.num_timesteps,
@@ -319,6 +321,14 @@ def learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progre
     finally:
         if bar is not None and hasattr(bar, "pbar"):
             bar.pbar.close()
+
+
+def quiet_logger(verbose: int) -> Logger:
+    """SB3's logger as `learn` configures it by default (the table on stdout with `verbose`,
+    else nothing), without the empty directory its default makes in the temp directory at
+    every `learn` (the run directory holds what a run writes)."""
+    formats = [make_output_format("stdout", "")] if verbose else []
+    return Logger(folder=None, output_formats=formats)
 
 
 # ---- the model: new, or read back from a checkpoint; saved -------------------------------

@@ -4,6 +4,7 @@ same seed training the same agent."""
 from __future__ import annotations
 
 import json
+import tempfile
 
 import numpy as np
 import pytest
@@ -53,8 +54,13 @@ def test_a_budget_run_stops_when_solved_and_keeps_the_best_model(tmp_path, monke
     SB3Policy.load(tmp_path / "best")  # a run directory of its own, loadable
 
 
-def test_a_budget_run_stops_when_the_time_is_spent(tmp_path):
-    result = train(BEAD, run_dir=tmp_path, eval_freq=512, budget=1.0, **SMALL)
+def test_a_budget_run_stops_when_the_time_is_spent(tmp_path, monkeypatch):
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))  # where SB3's default logger writes
+    result = train(BEAD, run_dir=tmp_path / "run", eval_freq=512, budget=1.0, **SMALL)
+    tmp_path = tmp_path / "run"
+    assert not list(temp.glob("SB3-*"))  # no empty directory of SB3's default logger
     assert result.solved is None
     assert 0 < result.timesteps < budget.BUDGET_STEPS_CAP
     # a budget shorter than what must follow training (an evaluation, the saves, the first
