@@ -50,7 +50,7 @@ from .common import (
 )
 from .evaluate import BASELINES, heuristic_of
 from .learning import declared, hparams, randomization
-from .learning.budget import budget_arg
+from .learning.budget import RULE, budget_arg
 from .learning.defaults import describe
 from .learning.fingerprint import check_fingerprint
 from .learning.hparams import ALGOS, load_hyperparams
@@ -155,7 +155,9 @@ def check_env(
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
     length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
     log(f"  training {algo.upper()} {length} in {run_dir} ...")
-    log(f"  ({describe(load_hyperparams(algo, env_id, hyperparams))}; agents.learning.defaults)")
+    lqr = not any(r.env_id == env_id and r.agent == "lqr" for r in refused)
+    settings = describe(load_hyperparams(algo, env_id, hyperparams), lqr)
+    log(f"  ({settings}; agents.learning.defaults)")
     result, training = train_timed(
         env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
     )
@@ -319,7 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--budget",
         type=budget_arg,
-        help="train each agent until solved (>= 80 %% evaluated success twice in a row) "
+        help=f"train each agent until solved ({RULE.replace('%', '%%')}) "
         "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
         "instead of --timesteps (agents.learning.budget); without either, a system whose task "
         "and hyperparameters declare no n_timesteps trains so for 10m",

@@ -107,16 +107,19 @@ def derived(env_id: str, task) -> dict:
     return out
 
 
-def describe(hp: dict) -> str:
-    """One line saying what the derived settings in `hp` are."""
+def describe(hp: dict, lqr: bool = True) -> str:
+    """One line saying what the derived settings in `hp` are; `lqr`: whether LQR can be
+    designed for the env (where it cannot, the potential is named as left out)."""
     parts = [f"gamma {hp['gamma']:g}"] if "gamma" in hp else []
     if hp.get("reward_scale"):
         parts.append(f"rewards x {hp['reward_scale']:.3g} (1 / the declared per-step span)")
     shaping = hp.get("shaping") or {}
-    if shaping.get("lqr"):
+    if shaping.get("lqr") and not lqr:
+        parts.append("no LQR potential (LQR refused this env)")
+    elif shaping.get("lqr"):
         parts.append(f"LQR potential shaping {shaping['lqr']:g}")
     if shaping.get("success"):
         parts.append(f"success bonus {shaping['success']:g} a step")
-    if not (shaping.get("lqr") or shaping.get("success")):
+    if not ((shaping.get("lqr") and lqr) or shaping.get("success")):
         parts.append("no shaping")
     return ", ".join(parts)

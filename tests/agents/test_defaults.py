@@ -11,7 +11,14 @@ import envs
 import examples.furuta  # noqa: F401  (registers Examples/Furuta-v0)
 from agents.learning import hparams
 from agents.learning.budget import constant_schedules, parse_budget
-from agents.learning.defaults import GAMMA_MAX, GAMMA_MIN, derived, discount, reward_span
+from agents.learning.defaults import (
+    GAMMA_MAX,
+    GAMMA_MIN,
+    derived,
+    describe,
+    discount,
+    reward_span,
+)
 from agents.learning.shaping import LQRPotential, TaskRewardVecEnv
 from agents.learning.vecenv import make_envs
 from agents.scoring.diagnosis import flat_components, success_edges
@@ -88,6 +95,15 @@ def test_the_success_bonus_is_paid_at_the_steps_inside_the_success_set():
     venv.reset()
     rewards = [venv.step(np.zeros((1, 1), np.float32))[1][0] for _ in range(4)]
     assert rewards == [-0.5, -0.25, -0.5, -0.25]  # scale x -1, plus the bonus when inside
+
+
+def test_the_settings_line_names_the_potential_only_where_lqr_can_be_designed():
+    hp = {"gamma": 0.99, "shaping": {"lqr": 0.5, "success": 0.1}}
+    assert "LQR potential shaping 0.5" in describe(hp)
+    line = describe(hp, lqr=False)  # Kapitza's pendulum: time-dependent, LQR refuses
+    assert "LQR potential shaping" not in line and "no LQR potential" in line
+    assert "success bonus 0.1" in line
+    assert "no shaping" in describe({"shaping": {"lqr": 0.5}}, lqr=False)
 
 
 def test_a_bonus_alone_wraps_the_training_env_and_not_the_evaluation_env():
