@@ -287,7 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--budget",
         type=budgets.budget_arg,
         help="wall-clock budget (600, 90s, 10m, 1.5h): train until the evaluated success "
-        "holds (>= 80 %% at 2 evaluations in a row) or the time is spent; keeps the best "
+        f"holds ({budgets.RULE.replace('%', '%%')}) or the time is spent; keeps the best "
         "model (agents.learning.budget). Not repeatable: use --timesteps for that",
     )
     parser.add_argument("--seed", type=non_negative_int, default=0)

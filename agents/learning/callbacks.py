@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.logger import Logger, make_output_format
 from stable_baselines3.common.callbacks import (
     BaseCallback,
     CallbackList,
@@ -22,6 +21,7 @@ from stable_baselines3.common.callbacks import (
     EvalCallback,
     ProgressBarCallback,
 )
+from stable_baselines3.common.logger import Logger, make_output_format
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.save_util import save_to_pkl
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
