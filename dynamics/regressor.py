@@ -89,7 +89,7 @@ def catalogue(model: Model) -> Catalogue:
     key = model.key
     if key not in _catalogues:
         system = model.compile()
-        module, _ = system.kernels()
+        module = system.kernel_module
         _catalogues[key] = Catalogue(
             dict(system.parameters),
             dict(system.units),

@@ -347,12 +347,6 @@ class System:
         (`parameter_vector`) or rows of them (the environments' fused step)."""
         return self._m
 
-    def kernels(self) -> tuple[ModuleType, np.record]:
-        """(module, parameters): the generated module of numba kernels (its `KEY` hashes all
-        of its code) and the parameter record they take, for code that calls them from its
-        own compiled loops (the environments' fused step)."""
-        return self._m, self._p
-
     def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
         """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
         model = stepping.table(self._m, "residual")

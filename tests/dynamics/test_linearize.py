@@ -79,7 +79,7 @@ def test_interpreted_linearisation_equals_the_compiled_kernels(name, monkeypatch
         K_c, r_c = system.kkt(x, u)
         np.testing.assert_allclose(K, K_c, rtol=0, atol=1e-14 * max(1.0, np.abs(K_c).max()))
         np.testing.assert_allclose(r, r_c, rtol=0, atol=1e-14 * max(1.0, np.abs(r_c).max()))
-    assert system.kernels()[0].linear_terms.signatures
+    assert system.kernel_module.linear_terms.signatures
 
 
 def test_interpreted_linearisation_falls_back_where_python_raises(monkeypatch):
@@ -96,7 +96,7 @@ def test_interpreted_linearisation_falls_back_where_python_raises(monkeypatch):
 
     monkeypatch.setattr(system_module, "_linear_terms_py", divide_by_zero)
     A, B = system.linearize(xs[0], np.zeros(system.n_u))
-    assert system.kernels()[0].linear_terms.signatures
+    assert system.kernel_module.linear_terms.signatures
     assert np.isfinite(A).all() and np.isfinite(B).all()
 
 
