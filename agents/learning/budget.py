@@ -9,9 +9,10 @@ with 20 episodes each, a 70 % agent passes two in a row at 6 % of its evaluation
 runs make dozens; three, at 1.3 %, cost an agent at 95 % one evaluation more). Every evaluation
 that beats the best so far (success rate, then mean return) saves the model, its
 normalisation statistics and config.yml into `best/` of the run directory, each file
-atomically; at the end the final model is evaluated too (unless its weights just were),
-the run's model.zip is the best one (`best/` keeps it too), and `solved.json` records the
-seconds and env steps to success.
+atomically; a run that meets the rule keeps the model that met it (the last evaluated);
+one that runs out of time evaluates the final model too (unless its weights just were)
+and keeps the best one. The run's model.zip is the kept one (`best/` holds it too), and
+`solved.json` records the seconds and env steps to success.
 
 What the budget covers: the run from the start of training (the envs and the model made,
 matplotlib imported) to the kept model: the training steps and updates, the evaluations,
@@ -282,7 +283,11 @@ class AfterEvals(BaseCallback):
 class SolvedStop(BaseCallback):
     """After each evaluation: keep the best model in `run_dir/best`, and stop training once
     the success rate has been at least `rate` at `times` evaluations in a row (recording
-    the time and steps in solved.json). `clock` gives the training's elapsed seconds."""
+    the time and steps in solved.json), keeping the model that met the rule: the best
+    single evaluation of a run is its luckiest (the Segway's seed 0 kept a model that
+    scored 100 % once between evaluations of 35-55 %, 70 % on 40 fresh starts, where the
+    model that met the rule at 85 %, 85 %, 85 % scored 75 %). `clock` gives the training's
+    elapsed seconds."""
 
     def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None):
         super().__init__()
@@ -303,10 +308,10 @@ class SolvedStop(BaseCallback):
         successes = parent._is_success_buffer
         rate = float(np.mean(successes)) if successes else 0.0
         score = (rate, float(np.mean(parent.evaluations_results[-1])))
-        if self.best is None or score > self.best:
+        self.streak = self.streak + 1 if rate >= self.rate else 0
+        if self.best is None or score > self.best or self.streak >= self.times:
             self.best = score
             self.save_best()
-        self.streak = self.streak + 1 if rate >= self.rate else 0
         if self.streak >= self.times:
             self.solved = {
                 "seconds": round(self.clock.elapsed(), 2),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -41,7 +42,7 @@ def test_the_same_seed_and_step_budget_train_the_same_agent(tmp_path):
     assert any(not np.array_equal(v, _parameters(other.model)[k]) for k, v in first.items())
 
 
-def test_a_budget_run_stops_when_solved_and_keeps_the_best_model(tmp_path, monkeypatch):
+def test_a_budget_run_stops_when_solved_keeping_the_model_that_met_it(tmp_path, monkeypatch):
     monkeypatch.setattr(budget, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
     result = train(BEAD, timesteps=10_000, run_dir=tmp_path, eval_freq=512, budget=600, **SMALL)
     # solved at the third evaluation (512, 1024, 1536 steps: three in a row at >= 0 %)
@@ -50,8 +51,24 @@ def test_a_budget_run_stops_when_solved_and_keeps_the_best_model(tmp_path, monke
     assert json.loads((tmp_path / "solved.json").read_text())["timesteps"] == 1536
     best = json.loads((tmp_path / "best" / "best.json").read_text())
     assert (tmp_path / "best" / "model.zip").read_bytes() == result.model_path.read_bytes()
-    assert best["timesteps"] in (512, 1024, 1536)
+    assert best["timesteps"] == 1536
     SB3Policy.load(tmp_path / "best")  # a run directory of its own, loadable
+
+
+def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_path):
+    # one lucky evaluation (100 % between 40 % ones) is the best so far until the rule is
+    # met; then the model that met it (85 % three times) replaces it
+    stop = budget.SolvedStop(tmp_path, SimpleNamespace(elapsed=lambda: 1.0), 0.8, 3)
+    kept = []
+    stop.save_best = lambda: kept.append(stop.num_timesteps)
+    stop.parent = SimpleNamespace(_is_success_buffer=[], evaluations_results=[])
+    for steps, rate in enumerate([0.4, 1.0, 0.4, 0.85, 0.85, 0.85], start=1):
+        stop.num_timesteps = steps
+        stop.parent._is_success_buffer = [1.0] * int(rate * 20) + [0.0] * (20 - int(rate * 20))
+        stop.parent.evaluations_results.append([-1.0])
+        go_on = stop._on_step()
+    assert not go_on and stop.solved["timesteps"] == 6
+    assert kept == [1, 2, 6]  # the first, the lucky one, and the one that met the rule
 
 
 def test_a_budget_run_stops_when_the_time_is_spent(tmp_path, monkeypatch):
