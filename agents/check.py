@@ -322,7 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--budget",
         type=budget_arg,
         help=f"train each agent until solved ({RULE.replace('%', '%%')}) "
-        "within this wall-clock time (600, 90s, 10m), always afresh, keeping the best model; "
+        "within this wall-clock time (600, 90s, 10m), always afresh, keeping the model that met "
+        "it (else the best evaluated); "
         "instead of --timesteps (agents.learning.budget); without either, a system whose task "
         "and hyperparameters declare no n_timesteps trains so for 10m",
     )

@@ -287,8 +287,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--budget",
         type=budgets.budget_arg,
         help="wall-clock budget (600, 90s, 10m, 1.5h): train until the evaluated success "
-        f"holds ({budgets.RULE.replace('%', '%%')}) or the time is spent; keeps the best "
-        "model (agents.learning.budget). Not repeatable: use --timesteps for that",
+        f"holds ({budgets.RULE.replace('%', '%%')}) or the time is spent; keeps the model that "
+        "met it, else the best evaluated (agents.learning.budget). Not repeatable: use "
+        "--timesteps for that",
     )
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--n-envs", type=positive_int, help="parallel envs (default: YAML n_envs)")
