@@ -4,6 +4,7 @@ defaults until solved within a wall-clock budget (agents.learning.budget).
     python benchmarks/learning.py                                    # every system, 4 learners
     python benchmarks/learning.py examples.furuta:Examples/Furuta-v0 --algos ppo,sac --budget 5m
     python benchmarks/learning.py --seeds 0,1,2 --budget 10m --out runs/learning
+    python benchmarks/learning.py --from runs/a/results.csv runs/b/results.csv --out runs/all
 
 Systems (positional, default): every registered Lagrange env and every env that a module
 of `examples/` registers when imported (a module that does not import, for want of an
@@ -32,6 +33,7 @@ import io
 import os
 import pkgutil
 import platform
+import statistics
 import sys
 from pathlib import Path
 
@@ -119,7 +121,50 @@ def table(rows: list[dict], seconds: float, header: str) -> str:
             f"[{r['low']:.0%}, {r['high']:.0%}] | {to_s} | {to_n} | {r['trained_steps']:,} "
             f"| {r['train_s']:.0f} | {r['note']} |"
         )
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + seeds_table(rows)) + "\n"
+
+
+def seeds_table(rows: list[dict]) -> list[str]:
+    """Lines of a table over training seeds, for each system and learner run with more than
+    one: how many seeds reached 80 %, the success over all their scored episodes with
+    Wilson's 95 % interval (each seed's agent scored on the same starts), and the median
+    seconds to 80 % of those that reached it. Empty where every pair ran one seed."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["system"], r["algo"]), []).append(r)
+    if all(len(g) < 2 for g in groups.values()):
+        return []
+    lines = ["", "Across training seeds:", "",
+             "| system | learner | seeds | at >= 80 % | success (all episodes, 95 % Wilson) "
+             "| to 80 %: median s |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for (system, algo), g in groups.items():
+        k = sum(round(float(r["success"]) * int(r["n"])) for r in g)
+        n = sum(int(r["n"]) for r in g)
+        interval = wilson_interval(k, n)
+        times = [float(r["to80_s"]) for r in g if r["to80_s"] != ""]
+        median = f"{statistics.median(times):.0f}" if times else ""
+        met = sum(float(r["success"]) >= 0.8 for r in g)
+        lines.append(
+            f"| {system} | {algo} | {', '.join(str(r['seed']) for r in g)} | {met} of {len(g)} "
+            f"| {k / n:.0%} [{interval.low:.0%}, {interval.high:.0%}] | {median} |"
+        )
+    return lines
+
+
+def read_rows(paths: list[str]) -> list[dict]:
+    """The rows of earlier runs' results.csv files (`--from`), typed as `run_one` gives them."""
+    rows = []
+    for path in paths:
+        with open(path, newline="") as f:
+            for r in csv.DictReader(f):
+                for key in ("success", "low", "high", "train_s"):
+                    r[key] = float(r[key])
+                for key in ("seed", "n", "trained_steps"):
+                    r[key] = int(r[key])
+                r["to80_s"] = float(r["to80_s"]) if r["to80_s"] else ""
+                r["to80_steps"] = int(r["to80_steps"]) if r["to80_steps"] else ""
+                rows.append(r)
+    return rows
 
 
 def write(rows: list[dict], out: Path, seconds: float, header: str) -> None:
@@ -138,7 +183,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=budget_arg, default=600.0, help="per run (default 10m)")
     parser.add_argument("--seeds", default="0", help="training seeds, comma-separated")
     parser.add_argument("--out", default="runs/learning", help="output directory")
+    parser.add_argument("--from", dest="sources", nargs="+", metavar="CSV",
+                        help="no training: one table from earlier runs' results.csv files "
+                        "(runs split over several processes), written to OUT")  # fmt: skip
     args = parser.parse_args(argv)
+    if args.sources:
+        rows = read_rows(args.sources)
+        header = f"# Learning benchmark\n\nThe runs of {', '.join(args.sources)}."
+        write(rows, Path(args.out), args.budget, header)
+        print(table(rows, args.budget, header))
+        return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from agents.common import set_torch_threads
     from agents.learning.hparams import check_algo_name

@@ -43,6 +43,28 @@ def test_the_table_and_csv_say_what_was_met(tmp_path):
     assert [r["algo"] for r in read] == ["ppo", "sac"] and (tmp_path / "results.md").exists()
 
 
+def test_runs_over_several_seeds_get_a_row_each_and_one_across_them(tmp_path):
+    bench = _benchmark()
+    base = {"system": "Examples/Segway-v0", "algo": "ppo", "n": 20, "low": 0.0, "high": 1.0,
+            "trained_steps": 1000, "train_s": 60.0, "lqr_share": "", "note": ""}  # fmt: skip
+    rows = [
+        {**base, "seed": 0, "success": 0.9, "to80_s": 100.0, "to80_steps": 1000},
+        {**base, "seed": 1, "success": 0.7, "to80_s": "", "to80_steps": ""},
+        {**base, "seed": 2, "success": 1.0, "to80_s": 40.0, "to80_steps": 500},
+    ]
+    # 18 + 14 + 20 = 52 of 60 episodes: Wilson's interval [76 %, 93 %]; median of 100, 40 s
+    assert "| Examples/Segway-v0 | ppo | 0, 1, 2 | 2 of 3 | 87% [76%, 93%] | 70 |" in (
+        bench.table(rows, 600, "# h")
+    )
+    assert "Across training seeds" not in bench.table(rows[:1], 600, "# h")  # one seed: none
+    # runs split over processes: one table from their files, the same as from one run
+    bench.write(rows[:2], tmp_path / "a", 600, "# a")
+    bench.write(rows[2:], tmp_path / "b", 600, "# b")
+    csvs = [str(tmp_path / d / "results.csv") for d in "ab"]
+    assert bench.main(["--from", *csvs, "--out", str(tmp_path / "all")]) == 0
+    assert bench.read_rows([str(tmp_path / "all" / "results.csv")]) == rows
+
+
 def test_an_unknown_learner_is_refused():
     bench = _benchmark()
     with pytest.raises(ValueError, match="Unknown algorithm 'ppp'. Did you mean 'ppo'"):
