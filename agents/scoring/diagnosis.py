@@ -129,7 +129,7 @@ def flat_reward_warning(env_id: str, shaped: bool = True) -> str | None:
             "success bonus pays for being inside, or add a term that grows towards the goal."
             if shaped
             else "this training has no LQR shaping (the task's own settings leave it out): add "
-            "a term that grows towards the goal, or ask for shaping ({lqr: 0.5, success: 0.5})."
+            "a term that grows towards the goal, or ask for shaping ({lqr: 0.5, success: 0.1})."
         )
     )
 

@@ -50,7 +50,7 @@ def test_reward_scale_makes_one_steps_range_one():
 def test_derived_values_sit_between_the_yaml_default_and_the_task():
     hp = hparams.load("ppo", FURUTA)  # the example declares no hyperparameters
     assert hp["gamma"] == pytest.approx(0.99)
-    assert hp["shaping"] == {"lqr": 0.5, "success": 0.5}
+    assert hp["shaping"] == {"lqr": 0.5, "success": 0.1}
     task = gym.spec(ACROBOT).kwargs["task"]
     assert task.hyperparams["ppo"]["gamma"] == 0.998
     acro = hparams.load("ppo", ACROBOT)
@@ -200,7 +200,7 @@ def test_shaping_is_derived_where_the_operating_point_follows_the_state():
     import examples.segway as segway
 
     assert callable(segway.TASK.operating_point)
-    assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5, "success": 0.5}
+    assert derived(segway.ID, segway.TASK)["shaping"] == {"lqr": 0.5, "success": 0.1}
 
 
 def test_flat_reward_warning_names_the_remedy_the_training_has():
