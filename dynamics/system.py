@@ -347,17 +347,6 @@ class System:
         (`parameter_vector`) or rows of them (the environments' fused step)."""
         return self._m
 
-    def constraint_residual_unchecked(self, T, X, out: np.ndarray) -> None:
-        """`constraint_residual` on contiguous float64 rows into `out` (N, n_c), unchecked."""
-        model = stepping.table(self._m, "residual")
-        rows.state_batch(T, X, self._p, None, out, model, stepping.AT_RESIDUAL)
-
-    def outputs_unchecked(self, T, X, U, out: np.ndarray) -> None:
-        """`outputs` on contiguous float64 rows into `out` (N, len(output_names)), columns in
-        the order of `output_names`, without checks."""
-        model = stepping.table(self._m, "accelerations", "outputs")
-        rows.outputs_batch(T, X, U, self._p, None, out, model)
-
     def project(self, x, t=0.0) -> np.ndarray:
         """x with its rates moved onto the velocity constraints (kinetic-energy metric)."""
         T, X, _, lead = self._batch(t, x, need_u=False)

@@ -348,11 +348,9 @@ class Runtime:
         plant = self.plant
         if not len(plant.output_index):
             return self.X
-        if self.parameters.per_row:
-            model = stepping.table(self.system.kernel_module, "accelerations", "outputs")
-            outputs_batch(self.T, self.X, self.U, self._p_shared, self._P, self._Y, model)
-        else:
-            self.system.outputs_unchecked(self.T, self.X, self.U, self._Y)
+        model = stepping.table(self.system.kernel_module, "accelerations", "outputs")
+        # every row's own parameters, or (P None) the shared ones
+        outputs_batch(self.T, self.X, self.U, self._p_shared, self._P, self._Y, model)
         n_x = self.system.state_size
         self._rows_x[:, :n_x] = self.X
         self._rows_x[:, n_x:] = self._Y[:, plant.output_index]
