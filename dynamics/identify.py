@@ -14,7 +14,8 @@ the model's input order, each input held from its sample to the next (zero-order
 an env steps; the last row's input is not used). Without `qd`, the rates are the
 Savitzky-Golay derivative of `q` (`scipy.signal.savgol_filter`, cubic, a `window` of
 `regression.WINDOW` s unless given). A record is noisy when `noise` says so, or, without
-it, when its positions and rates disagree beyond integration error (`regression.NOISY`).
+it, when the record's own high-order differences show white noise (`regression.noise_std`,
+which also gives its std; where the motion hides the noise, the result says so).
 
 The rows (`dynamics.regression`). Unconstrained models: Lagrange's equations integrated
 over windows of `span` samples (default 0.1 s), p(x_end) - p(x_start) = integral of g, the
@@ -64,6 +65,10 @@ from .regressor import (
 
 SEGMENT = 0.5
 """Length (s) of a simulation-error segment (multiple shooting)."""
+REL_STD = 0.25
+"""Largest relative standard error of an estimate the fit writes: an unknown the record
+determines worse (or one in the regressor's near-null space) is kept at its given value
+and listed in `Identification.undetermined`, never written as a fitted value."""
 FLAT = 1e-6
 """A singular value of the simulation error's Jacobian below this times the largest marks
 a direction the record does not determine (noise-free, the arm's (m1, l1, Ibar1) family
@@ -77,7 +82,7 @@ class Identification:
     parameters: every parameter of the model by name (unknowns at their estimates, the rest
         and the unidentifiable ones at their given values): `Model.compile(**parameters)`
         and `gym.make(env_id, **parameters)` accept it.
-    std: standard error of each estimated parameter (NaN for the unidentifiable).
+    std: standard error of each estimated parameter (NaN for the undetermined).
     base: the identifiable combinations (text, e.g. 'Ibar1 + 0.25*m1') and their values;
         base_std their standard errors.
     unidentifiable: {parameter: why}, the unknowns the equations do not determine.
@@ -100,6 +105,15 @@ class Identification:
     condition: float
     violated: list[str] = field(default_factory=list)
     unknown: tuple[str, ...] = ()
+    undetermined: dict[str, str] = field(default_factory=dict)
+    """{unknown: why} for every unknown this record does not determine: those no record
+    could separate (`unidentifiable`) and those this record determines worse than REL_STD;
+    each is kept at its given value (`parameters`), never written as a fitted value."""
+    precision: dict[str, float] = field(default_factory=dict)
+    """{unknown: relative standard error} of every estimated unknown (each <= REL_STD)."""
+    noise: str = ""
+    """The sensors' noise the fit assumed: given, or estimated from the record (and where it
+    could not be told from the motion, said so)."""
     fitted: dict = field(default_factory=dict)
     """The record's equations as fitted: time (rows,), measured and predicted (rows, n_eq):
     the generalised forces of the inputs (and of everything not unknown) against the model's
@@ -133,7 +147,8 @@ def identify(
     width: rate scale of the smooth Coulomb term tanh(q'/width).
     refine: simulation-error refinement (None: when some unknown enters nonlinearly).
     noise: the sensors' noise std (positions, rates) where known; None estimates whether
-        there is noise (`regression.NOISY`) and the rates' std (`regression.rate_sigma`).
+        the noise from the record itself (`regression.noise_std`; `Identification.noise`
+        says what was assumed).
     """
     base_model = as_model(model)
     setting = friction_setting(base_model, friction)
@@ -152,14 +167,24 @@ def identify(
     rows = regression.build_rows(reg, rec, p, window, span)
     W = regression.random_regressor(reg, rec, p, seed)
     b = estimate.base(W, estimate.preference(lin, cat.units))
-    fit = _fit(rows, lin, b, values, full)
+    held: dict[str, str] = {}  # unknowns the record does not determine -> why
+    while True:
+        fit = _fit(rows, lin, b, values, full, frozenset(held))
+        worst = _undetermined(fit, held, values)
+        if worst is None:
+            break
+        held[worst[0]] = worst[1]
+    _refuse_unphysical(full, fit, values)
     fitted = _fitted(rows, rec, lin, b, fit)
     if refine is None:
         refine = bool(reg.nonlinear)
     if refine:
-        fit = _refine(full, rec, fit, list(reg.nonlinear) + [lin[i] for i in b.independent])
-    out = _result(base_model, full, setting, unknown, reg, b, fit)
+        names_ = list(reg.nonlinear) + [lin[i] for i in b.independent if lin[i] not in held]
+        fit = _refine(full, rec, fit, names_)
+        _refuse_unphysical(full, fit, values)
+    out = _result(base_model, full, setting, unknown, reg, b, fit, held)
     out.fitted = fitted
+    out.noise = rec.noise_note
     return out
 
 
@@ -230,34 +255,56 @@ def _lower(full, names: list[str], values: dict) -> dict[str, float]:
     return out
 
 
-def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full) -> Fit:
+def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full,
+         held=frozenset()) -> Fit:  # fmt: skip
+    """Weighted, noise-compensated least squares of the base parameters, the unknowns in
+    `held` kept at their given values (their columns moved to the target), refitted under
+    the model's physical constraints where the estimate breaks them."""
     I, D, K = b.independent, b.dependent, b.K
     theta_D = np.array([values[lin[d]] for d in D])
-    A, y = rows.A[:, I], rows.y  # A theta = A_I (theta_I + K theta_D) = A_I beta
+    prior = np.array([values[lin[i]] for i in I]) + K @ theta_D  # the base values as given
+    free = [j for j, i in enumerate(I) if lin[i] not in held]
+    fixed = [j for j, i in enumerate(I) if lin[i] in held]
+    A_I = rows.A[:, I]
+    A, y = A_I[:, free], rows.y - A_I[:, fixed] @ prior[fixed]
     violated: list[str] = []
+
+    def theta_of(beta_free):
+        beta = prior.copy()
+        beta[free] = beta_free
+        return values | dict(zip([lin[i] for i in I], beta - K @ theta_D))
+
+    if not free:  # everything held: nothing to fit
+        r = rows.y - A_I @ prior
+        return Fit(theta_of(np.zeros(0)), {}, prior, np.full(len(I), np.nan),
+                   _residual_rms(rows, r), float("nan"), violated)  # fmt: skip
 
     def noise(w_eq):
         if rows.noise is None:
             return None, None
         CA, cy = rows.noise
-        return (np.einsum("e,ekl->kl", w_eq**2, CA[:, I][:, :, I]),
-                np.einsum("e,ek->k", w_eq**2, cy[:, I]))  # fmt: skip
+        C = CA[:, I][:, :, I]
+        c = cy[:, I] - C[:, :, fixed] @ prior[fixed]  # the held columns' noise is in y now
+        return (np.einsum("e,ekl->kl", w_eq**2, C[:, free][:, :, free]),
+                np.einsum("e,ek->k", w_eq**2, c[:, free]))  # fmt: skip
 
     ones = np.ones(rows.n_eq)
     first = estimate.compensated(A, y, *noise(ones))
+    compensate = rows.noise is not None
     if first is None:  # the noise outweighs the signal in some direction: fit as it is
         violated.append(
             "the record's rate noise exceeds its signal in some direction: "
             "no errors-in-variables compensation (expect estimates shrunk)"
         )
         first = (A, y, A.T @ A)
-        rows.noise = None
+        compensate = False
     beta, _ = estimate.scaled_lstsq(*first[:2])
     r = y - A @ beta
     sigma = np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
     w_eq = 1.0 / np.maximum(sigma, 1e-12 * max(sigma.max(), 1e-300))
-    weighted = estimate.compensated(A * w_eq[rows.equation][:, None], y * w_eq[rows.equation],
-                                    *noise(w_eq))  # fmt: skip
+    Aw_, yw_ = A * w_eq[rows.equation][:, None], y * w_eq[rows.equation]
+    weighted = estimate.compensated(Aw_, yw_, *noise(w_eq)) if compensate else (
+        Aw_, yw_, Aw_.T @ Aw_)  # fmt: skip
     if weighted is None:  # weighting made the noise outweigh a direction: equal weights
         w_eq = ones
         weighted = first
@@ -266,36 +313,84 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
     R, z, gram = weighted
     beta, cond = estimate.scaled_lstsq(R, z)
 
-    def theta_of(beta_):
-        return values | dict(zip([lin[i] for i in I], beta_ - K @ theta_D))
-
     lower = _lower(full, lin, values)
-    bodies = estimate.bodies(list(values))
-    unphysical = estimate.violations(theta_of(beta), lower, bodies)
+    unphysical = _unphysical(full, theta_of(beta), lower)
     violated += unphysical
     if unphysical:
-        lower_I = np.array([lower.get(lin[i], -np.inf) for i in I]) + K @ theta_D
-        checks = _inertia_checks(bodies, theta_of) if any(
-            set(axes.values()) & set(lin) for axes in bodies.values()
-        ) else None  # fmt: skip
-        beta = estimate.constrained_fit(R, z, beta, lower_I, checks)
+        lower_I = np.array([lower.get(lin[I[j]], -np.inf) for j in free]) + (K @ theta_D)[free]
+        beta = estimate.constrained_fit(R, z, beta, lower_I, _body_checks(full, theta_of))
     cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
-    beta_std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    beta_std = np.full(len(I), np.nan)
+    beta_std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    full_beta = prior.copy()
+    full_beta[free] = beta
     theta = theta_of(beta)
-    std = {lin[i]: float(s) for i, s in zip(I, beta_std)}
-    return Fit(theta, std, beta, beta_std, _residual_rms(rows, y - A @ beta), cond, violated)
+    std = {lin[I[j]]: float(beta_std[j]) for j in free}
+    r = rows.y - A_I @ full_beta
+    return Fit(theta, std, full_beta, beta_std, _residual_rms(rows, r), cond, violated)
 
 
-def _inertia_checks(bodies: dict, theta_of):
+def _unphysical(full, theta: dict, lower: dict) -> list[str]:
+    """What `theta` breaks: a lower bound, or the model's conditions and bodies."""
+    from . import physical
+
+    out = [f"{k} = {theta[k]:.6g} < {lo:g}" for k, lo in lower.items() if theta[k] < lo]
+    module = catalogue(full).module
+    with np.errstate(all="ignore"):
+        return out + physical.problems(module, np.array([theta[k] for k in module.PARAMETERS]))
+
+
+def _body_checks(full, theta_of):
+    """beta -> values that must be >= 0 for the model's bodies and conditions (None when it
+    declares neither): each body's smallest principal moment and the triangle inequality's
+    slack, each condition's value."""
+    module = catalogue(full).module
+    from . import physical
+
+    if not physical.bodies(module) and not module.CONDITIONS:
+        return None
+
     def checks(beta):
         theta = theta_of(beta)
+        pv = np.array([theta[k] for k in module.PARAMETERS])
         out = []
-        for axes in bodies.values():
-            ev = np.linalg.eigvalsh(estimate.inertia_matrix(axes, theta.__getitem__))
+        for xx, xy, xz, yy, yz, zz in physical.inertias(module, pv):
+            ev = np.linalg.eigvalsh(np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]))
             out += [ev[0], ev[0] + ev[1] - ev[2]]
-        return np.array(out)
+        out += list(module.conditions(pv)) if module.CONDITIONS else []
+        return np.array(out, dtype=float)
 
     return checks
+
+
+def _refuse_unphysical(full, fit: Fit, values: dict) -> None:
+    """ValueError when even the constrained fit is no possible body (never written)."""
+    problems = _unphysical(full, fit.theta, _lower(full, list(fit.std), values))
+    if problems:
+        raise ValueError(
+            "identify: no physically possible parameters fit this record (the constrained "
+            f"fit still has {'; '.join(problems)}); record more, or more varied, motion."
+        )
+
+
+def _undetermined(fit: Fit, held: dict, values: dict) -> tuple[str, str] | None:
+    """(name, why) of the estimated unknown the record determines worst, when its relative
+    standard error exceeds REL_STD (or is not finite); None when every one is determined."""
+    worst, rel_worst = None, REL_STD
+    for name, s in fit.std.items():
+        if name in held:
+            continue
+        value = fit.theta[name]
+        rel = s / abs(value) if value != 0 else np.inf
+        if not np.isfinite(rel) or rel > rel_worst:
+            worst, rel_worst = name, rel
+    if worst is None:
+        return None
+    how = f"{rel_worst:.0%}" if np.isfinite(rel_worst) else "an unbounded share"
+    why = (f"the record determines it only to {how} (relative standard error, above "
+           f"{REL_STD:.0%}: {fit.theta[worst]:.3g} +- {fit.std[worst]:.2g}); kept at its "
+           f"given value {values[worst]:.6g}")  # fmt: skip
+    return worst, why
 
 
 def _residual_rms(rows: regression.Rows, r: np.ndarray) -> np.ndarray:
@@ -361,7 +456,7 @@ def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
                fit.residual_rms, fit.condition, fit.violated, weak)  # fmt: skip
 
 
-def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit):
+def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit, held: dict):
     lin = list(reg.linear)
     I, D, K = b.independent, b.dependent, b.K
     combos = [estimate.combination(lin, b, i) for i in range(len(I))]
@@ -377,9 +472,14 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
         how = f"enters only through {'; '.join(where)}" if where else "does not enter the equations"
         unidentifiable[lin[d]] = f"{how}; held at its given value {fit.theta[lin[d]]:.6g}"
     unidentifiable |= fit.weak
+    undetermined = unidentifiable | held
     std = {k: float(fit.std.get(k, np.nan)) for k in unknown}
-    for k in unidentifiable:
+    for k in undetermined:
         std[k] = float("nan")
+    precision = {
+        k: abs(s / fit.theta[k]) if fit.theta[k] else float("inf")
+        for k, s in std.items() if s == s
+    }  # fmt: skip
     friction = {
         c: {kind: float(fit.theta[name])
             for kind, name in zip(("viscous", "coulomb"), friction_names(c)) if name in fit.theta}
@@ -398,4 +498,6 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit)
         condition=float(fit.condition),
         violated=list(fit.violated),
         unknown=tuple(unknown),
+        undetermined=undetermined,
+        precision=precision,
     )

@@ -22,12 +22,21 @@ rolling disk (sensor noise 1e-2 rad/s) 0.1 s left the rates' noise above the sig
 some combinations, 0.3 s fitted within 1.2 %."""
 SPAN = 0.1
 """Integration window (s) of a row of the momentum form."""
-NOISY = 1e-2
-"""Rms of q(t1) - q(t0) - h (q'(t0) + q'(t1)) / 2 over that of h q' above which a record is
-taken to carry measurement noise (noise-free records at 100 Hz: about 1e-4 or less)."""
+NOISE_FLOOR = 1e-6
+"""Estimated rate noise, over the rate's rms, above which a record is taken to be noisy
+(a noise-free record's differences reach white rounding error only far below this)."""
 RANDOM_STATES = 200
 """States on which the base parameters are found."""
 POLYORDER = 3
+
+
+ORDERS = tuple(range(2, 9))
+"""Orders of the differences the noise is estimated from (`noise_std`)."""
+WHITE = 0.1
+"""Largest departure of the differences' robust lag-1 autocorrelation from white noise's,
+-k / (k + 1) for the k-th difference, at which they are taken to be noise (`noise_std`):
+a smooth motion's differences correlate positively; at 2000 samples the statistic's
+sampling spread is about 0.03."""
 
 
 @dataclass(frozen=True)
@@ -38,6 +47,63 @@ class Record:
     u: np.ndarray
     h: float
     noise: tuple[float, float] | None = None
+    # the sensors' noise std per channel (given or estimated), and what was done
+    sigma_q: np.ndarray | None = None
+    sigma_qd: np.ndarray | None = None
+    noise_note: str = ""
+
+
+def _mad(x: np.ndarray) -> np.ndarray:
+    """Robust std per column: 1.4826 x the median absolute deviation."""
+    return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+
+
+def noise_std(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(std, told) per column of a sampled signal: its white measurement noise, estimated
+    from its k-th differences (k in ORDERS), where a smooth motion is small, (omega h)^k,
+    and white noise of std s has std s sqrt(C(2k, k)); robustly (the median absolute
+    deviation, so rare fast events do not count). An order counts where its differences
+    look like white noise's (lag-1 autocorrelation within WHITE of -k / (k + 1)); `told`
+    is False where none does (the motion hides the noise at this sampling rate: the
+    smallest estimate is then only an upper bound)."""
+    cols = a.shape[1]
+    best = np.full(cols, np.inf)
+    bound = np.full(cols, np.inf)
+    for k in ORDERS:
+        if len(a) < k + 10:
+            break
+        d = np.diff(a, k, axis=0)
+        s = _mad(d) / math.sqrt(math.comb(2 * k, k))
+        plus, minus = _mad(d[1:] + d[:-1]) ** 2, _mad(d[1:] - d[:-1]) ** 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = (plus - minus) / (plus + minus)
+        white = np.abs(r + k / (k + 1)) < WHITE
+        best = np.where(white, np.minimum(best, s), best)
+        bound = np.minimum(bound, s)
+    told = np.isfinite(best)
+    return np.where(told, best, bound), told
+
+
+def _noise(q, qd, noise) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """(sigma_q, sigma_qd, note): the given noise, or the record's estimate (`noise_std`)
+    where it can be told from the motion and 0 (no compensation) where it cannot."""
+    n = q.shape[1]
+    if noise is not None:
+        return np.full(n, noise[0]), np.full(n, noise[1]), f"given: std {noise[0]:g}, {noise[1]:g}"
+    signal = qd if qd is not None else q
+    s, told = noise_std(signal)
+    kind = "rates" if qd is not None else "positions"
+    note = f"estimated from the record's {kind}: std " + ", ".join(f"{v:.3g}" for v in s)
+    if not told.all():
+        which = ", ".join(str(i) for i in np.flatnonzero(~told))
+        note += (f"; for coordinate(s) {which} the motion hides the noise at this sampling "
+                 "rate (the figure is only an upper bound): not compensated there, so those "
+                 "estimates may be shrunk; give noise= (--noise) if you know it")
+        s = np.where(told, s, 0.0)
+    if qd is not None:
+        sq, _ = noise_std(q)
+        return sq, s, note
+    return s, None, note
 
 
 def check_record(data, n: int, nu: int, noise=None) -> Record:
@@ -71,7 +137,8 @@ def check_record(data, n: int, nu: int, noise=None) -> Record:
         noise = tuple(float(v) for v in noise)
         if len(noise) != 2 or not all(v >= 0 and math.isfinite(v) for v in noise):
             raise ValueError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
-    return Record(t, got["q"], got.get("qd"), got["u"], h, noise)
+    sigma_q, sigma_qd, note = _noise(got["q"], got.get("qd"), noise)
+    return Record(t, got["q"], got.get("qd"), got["u"], h, noise, sigma_q, sigma_qd, note)
 
 
 # ---- rows of the regression --------------------------------------------------------------
@@ -92,13 +159,14 @@ class Rows:
 
 
 def is_noisy(rec: Record) -> bool:
-    """Whether positions and rates disagree beyond integration error (see NOISY)."""
+    """Whether the record carries measurement noise: as given, or where the estimate
+    (`noise_std`) is above NOISE_FLOOR of a signal's rms."""
     if rec.qd is None:
         return True
     if rec.noise is not None:
         return max(rec.noise) > 0
-    gap = rec.q[1:] - rec.q[:-1] - rec.h * (rec.qd[1:] + rec.qd[:-1]) / 2
-    return bool(np.sqrt(np.mean(gap**2)) > NOISY * rec.h * np.sqrt(np.mean(rec.qd**2)))
+    rms = np.sqrt(np.mean(rec.qd**2, axis=0))
+    return bool(np.any(rec.sigma_qd > NOISE_FLOOR * rms))
 
 
 def signals(rec: Record, window: int | None, constrained: bool) -> tuple:
@@ -199,24 +267,15 @@ def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s, w: int = 0):
 
 
 def rate_sigma(rec: Record, w: int = 0) -> np.ndarray:
-    """The rates' noise std: given, or estimated from the record (a signal's rms departure
-    from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the filter's centre weight).
-    Without recorded rates, those of the filter's derivative (window w) of positions with
-    noise sigma_q: sigma_q sqrt(sum d_j^2) / h, d its weights."""
+    """The rates' noise std (given, or estimated: `Record.sigma_qd`). Without recorded
+    rates, those of the filter's derivative (window w) of positions with noise sigma_q:
+    sigma_q sqrt(sum d_j^2) / h, d its weights."""
     from scipy.signal import savgol_coeffs
 
-    def measured(a):
-        v = max(2 * int(round(WINDOW / rec.h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
-        c0 = savgol_coeffs(v, POLYORDER)[v // 2]
-        r = a - savgol_filter(a, v, POLYORDER, axis=0)
-        return np.sqrt(np.mean(r**2, 0) / (1.0 - c0))
-
-    n = rec.q.shape[1]
     if rec.qd is not None:
-        return np.full(n, rec.noise[1]) if rec.noise is not None else measured(rec.qd)
-    sigma_q = np.full(n, rec.noise[0]) if rec.noise is not None else measured(rec.q)
+        return rec.sigma_qd
     d = savgol_coeffs(w, POLYORDER, deriv=1)
-    return sigma_q * np.sqrt(np.sum(d**2)) / rec.h
+    return rec.sigma_q * np.sqrt(np.sum(d**2)) / rec.h
 
 
 def acceleration_noise(reg, rec: Record, T, X, QDD, U, p, w: int):

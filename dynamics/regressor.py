@@ -79,6 +79,7 @@ class Catalogue:
     positive: dict
     coordinates: tuple
     inputs: tuple
+    module: ModuleType  # the compiled kernels (`physical` reads its bodies and conditions)
 
 
 _catalogues: dict[str, Catalogue] = {}
@@ -96,6 +97,7 @@ def catalogue(model: Model) -> Catalogue:
             dict(zip(module.PARAMETERS, module.POSITIVE)),
             tuple(system.coordinates),
             tuple(system.inputs),
+            module,
         )
     return _catalogues[key]
 
