@@ -168,12 +168,14 @@ def identify(
     W = regression.random_regressor(reg, rec, p, seed)
     b = estimate.base(W, estimate.preference(lin, cat.units))
     held: dict[str, str] = {}  # unknowns the record does not determine -> why
+    doubt: dict[str, float] = {}  # their variance about the given value, as the record saw it
     while True:
-        fit = _fit(rows, lin, b, values, full, frozenset(held))
+        fit = _fit(rows, lin, b, values, full, doubt)
         worst = _undetermined(fit, held, values)
         if worst is None:
             break
-        held[worst[0]] = worst[1]
+        name, held[name] = worst
+        doubt[name] = fit.std[name] ** 2 + (fit.theta[name] - values[name]) ** 2
     _refuse_unphysical(full, fit, values)
     fitted = _fitted(rows, rec, lin, b, fit)
     if refine is None:
@@ -256,10 +258,14 @@ def _lower(full, names: list[str], values: dict) -> dict[str, float]:
 
 
 def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full,
-         held=frozenset()) -> Fit:  # fmt: skip
+         held: dict | None = None) -> Fit:  # fmt: skip
     """Weighted, noise-compensated least squares of the base parameters, the unknowns in
     `held` kept at their given values (their columns moved to the target), refitted under
-    the model's physical constraints where the estimate breaks them."""
+    the model's physical constraints where the estimate breaks them. `held` maps each to
+    the variance of its true value about the given one (what the record said of it before
+    it was held): it is propagated into the others' covariance, so holding a parameter the
+    record half-sees never makes their intervals narrower than the truth allows."""
+    held = held or {}
     I, D, K = b.independent, b.dependent, b.K
     theta_D = np.array([values[lin[d]] for d in D])
     prior = np.array([values[lin[i]] for i in I]) + K @ theta_D  # the base values as given
@@ -320,6 +326,9 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
         lower_I = np.array([lower.get(lin[I[j]], -np.inf) for j in free]) + (K @ theta_D)[free]
         beta = estimate.constrained_fit(R, z, beta, lower_I, _body_checks(full, theta_of))
     cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
+    if fixed:  # d beta / d beta_held = -G^-1 Aw^T Aw_held, times the held ones' variance
+        S = np.linalg.pinv(gram) @ (Aw.T @ (A_I[:, fixed] * w[:, None]))
+        cov = cov + S @ np.diag([held[lin[I[j]]] for j in fixed]) @ S.T
     beta_std = np.full(len(I), np.nan)
     beta_std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
     full_beta = prior.copy()
@@ -386,7 +395,7 @@ def _undetermined(fit: Fit, held: dict, values: dict) -> tuple[str, str] | None:
             worst, rel_worst = name, rel
     if worst is None:
         return None
-    how = f"{rel_worst:.0%}" if np.isfinite(rel_worst) else "an unbounded share"
+    how = f"{rel_worst:.0%}" if rel_worst < 10 else "more than 1000 %"
     why = (f"the record determines it only to {how} (relative standard error, above "
            f"{REL_STD:.0%}: {fit.theta[worst]:.3g} +- {fit.std[worst]:.2g}); kept at its "
            f"given value {values[worst]:.6g}")  # fmt: skip

@@ -96,8 +96,10 @@ def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
     ten noise draws: every inertial parameter within 5 % in each (measured: at most 1.7 %;
     4.8 % with the excitation at 0.5 of these torques instead of 0.8, Ibar1 then the least
     excited),
-    and the 95 % intervals of all parameters, friction included, cover the truth in at
-    least 85 % of the 80 cases (the sandwich errors are conservative here: measured 100 %;
+    and the 95 % intervals of all parameters the record determines, friction included,
+    cover the truth in at least 85 % of the cases (the shoulder's viscous coefficient,
+    which this record tells from its Coulomb one only to about 30 %, is kept at 0 and listed
+    in some draws, its doubt carried into the Coulomb estimate's interval) (the sandwich errors are conservative here: measured 100 %;
     85 % leaves room for chance, 2.3 standard deviations of a binomial at 95 %)."""
     friction = {"viscous_theta1": 0.1, "coulomb_theta1": 0.3,
                 "viscous_theta2": 0.05, "coulomb_theta2": 0.2}  # fmt: skip
@@ -116,7 +118,9 @@ def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
             est |= {f"{kind}_{coord}": v for kind, v in values.items()}
         for name in ARM:
             assert est[name] == pytest.approx(ARM[name], rel=0.05), (seed, name)
-        covered += [abs(est[k] - v) <= 1.96 * fit.std[k] for k, v in truth.items()]
+        assert not set(ARM) & set(fit.undetermined), seed
+        covered += [abs(est[k] - v) <= 1.96 * fit.std[k] for k, v in truth.items()
+                    if k not in fit.undetermined]  # fmt: skip
     assert np.mean(covered) >= 0.85
 
 

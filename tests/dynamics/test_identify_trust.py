@@ -1,0 +1,114 @@
+"""Identification a user can trust: the noise told from the record, what a record does not
+determine kept at its given value and named, and nothing impossible written.
+
+Records are made with the plant's own compiled model (`simulate`, 10 substeps per sample)
+with Gaussian sensor noise added; "right" is the issue's statement of it: the truth within
+3 standard errors, and that standard error at most 25 % of the value."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynamics
+from dynamics import regression
+from dynamics.excite import multisine
+from dynamics.identify import REL_STD, identify
+
+from .test_identify import ARM, simulate
+
+
+def noisy(data, std, seed=0):
+    rng = np.random.default_rng(seed)
+    out = dict(data)
+    out["q"] = data["q"] + std[0] * rng.standard_normal(data["q"].shape)
+    if "qd" in data:
+        out["qd"] = data["qd"] + std[1] * rng.standard_normal(data["qd"].shape)
+    return out
+
+
+def assert_right_or_flagged(fit, truth):
+    for name, value in truth.items():
+        if name in fit.undetermined:
+            assert fit.parameters[name] != pytest.approx(0.0, abs=1e-6), name
+            continue
+        s = fit.std[name]
+        assert s <= REL_STD * abs(fit.parameters[name]), (name, s)
+        assert abs(fit.parameters[name] - value) <= 3 * s, (name, fit.parameters[name], s)
+        assert abs(fit.parameters[name] / value - 1) <= 0.25, name
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return dynamics.get_model("two_link_arm")
+
+
+@pytest.fixture(scope="module")
+def fast_arm(arm):
+    """The arm driven hard: rates up to about 45 rad/s at 100 Hz."""
+    data = simulate(arm.compile(**ARM), [0.1, 0.2, 0.0, 0.0], [14.0, 6.0], fraction=0.9)
+    assert np.abs(data["qd"]).max() > 30
+    return data
+
+
+def test_noise_std_is_told_from_a_record_and_refused_where_the_motion_hides_it(fast_arm):
+    """White noise of std 1e-2 on the fast arm's rates is told within 25 % at 100 Hz
+    (measured 11-16 %: the robust estimator's spread on 2000 samples and the motion's
+    residue); the same record at 20 Hz has steps where the motion's differences are as
+    large as the noise's, and the estimator says it cannot tell."""
+    rates = noisy(fast_arm, (0.0, 1e-2))["qd"]
+    sigma, told = regression.noise_std(rates)
+    assert told.all() and sigma == pytest.approx([1e-2, 1e-2], rel=0.25)
+    sigma, told = regression.noise_std(fast_arm["qd"])  # noise-free: nothing white to see
+    assert not told.any() or (sigma < 1e-6 * np.abs(fast_arm["qd"]).max()).all()
+    _, told = regression.noise_std(rates[::5])
+    assert not told.all()
+
+
+@pytest.mark.parametrize("std", [(1e-3, 1e-2), (3e-3, 5e-2)])
+def test_fast_arm_with_noise_not_given_is_right(arm, fast_arm, std):
+    """Noise left to the library on the fast arm (the issue: +290 % to +764 %, intervals
+    as wide as the values): every inertial parameter right by the issue's test."""
+    fit = identify(arm, noisy(fast_arm, std))
+    assert "estimated" in fit.noise
+    assert_right_or_flagged(fit, ARM)
+    assert fit.undetermined == {}
+
+
+@pytest.mark.slow  # the disk's record and smoothed fit: ~4 s
+def test_rolling_disk_with_noise_not_given_is_right_or_flagged():
+    disk = dynamics.get_model("rolling_disk")
+    true = dict(m=1.4, I=0.03, J=0.05)
+    system = disk.compile(**true)
+    x0 = system.project(np.array([0, 0, np.pi / 2, 0, 0, 0, 0, 0, 0, -15.0]))
+    data = simulate(system, x0, [0.1, 0.02])
+    for std in ((1e-3, 1e-2), (3e-3, 5e-2)):
+        fit = identify(disk, noisy(data, std))
+        assert_right_or_flagged(fit, true)
+        p = fit.parameters
+        assert p["J"] <= 2 * p["I"] * (1 + 1e-9)  # a disk: J = 2 I at most (flat)
+
+
+def test_what_the_record_does_not_determine_is_kept_and_named(arm):
+    """The shoulder held still by a stiff servo (its torque recorded), the elbow driven:
+    Ibar1 multiplies the shoulder's acceleration, which stays zero, so the record cannot
+    tell it. It is kept at its given value and listed with the reason, never written as a
+    fitted number (before: m1 = 1e-9 +- 30); m1 still shows through the shoulder's
+    gravity torque and is estimated."""
+    system = arm.compile(**ARM)
+    h, T = 0.01, 2001
+    t = np.arange(T) * h
+    elbow = multisine([3.0], period=10.0, harmonics=4, fraction=0.5)(t)[:, 0]
+    x, X, U = np.array([0.3, 0.2, 0.0, 0.0]), [], []
+    for k in range(T):
+        u = np.array([-2000 * (x[0] - 0.3) - 90 * x[2], elbow[k]])
+        X.append(x)
+        U.append(u)
+        x = system.step(x, u, dt=h, substeps=10)
+    X = np.array(X)
+    data = noisy({"t": t, "q": X[:, :2], "qd": X[:, 2:], "u": np.array(U)}, (1e-3, 1e-2))
+    fit = identify(arm, data)
+    assert "Ibar1" in fit.undetermined and "kept at its given value" in fit.undetermined["Ibar1"]
+    assert fit.parameters["Ibar1"] == arm.parameters["Ibar1"]
+    assert np.isnan(fit.std["Ibar1"]) and "Ibar1" not in fit.precision
+    assert_right_or_flagged(fit, ARM)
