@@ -161,33 +161,58 @@ def identify(
     ]  # fmt: skip
     values = dict(cat.defaults) | _given(full, given)
     rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)
+    regression.check_time_base(full.compile(**values), rec)
     reg = Regressor(full, unknown)
     lin = list(reg.linear)
     p = np.array([values[k] for k in names])
-    rows = regression.build_rows(reg, rec, p, window, span)
-    W = regression.random_regressor(reg, rec, p, seed)
-    b = estimate.base(W, estimate.preference(lin, cat.units))
     held: dict[str, str] = {}  # unknowns the record does not determine -> why
-    doubt: dict[str, float] = {}  # their variance about the given value, as the record saw it
-    while True:
-        fit = _fit(rows, lin, b, values, full, doubt)
-        worst = _undetermined(fit, held, values)
-        if worst is None:
-            break
-        name, held[name] = worst
-        doubt[name] = fit.std[name] ** 2 + (fit.theta[name] - values[name]) ** 2
-    _refuse_unphysical(full, fit, values)
-    fitted = _fitted(rows, rec, lin, b, fit)
+    if lin:
+        rows = regression.build_rows(reg, rec, p, window, span)
+        _check_rows(rows, rec)
+        W = regression.random_regressor(reg, rec, p, seed)
+        b = estimate.base(W, estimate.preference(lin, cat.units))
+        doubt: dict[str, float] = {}  # their variance about the given value, as seen
+        while True:
+            fit = _fit(rows, lin, b, values, full, doubt)
+            worst = _undetermined(fit, held, values)
+            if worst is None:
+                break
+            name, held[name] = worst
+            doubt[name] = fit.std[name] ** 2 + (fit.theta[name] - values[name]) ** 2
+        _refuse_unphysical(full, fit, values)
+        fitted = _fitted(rows, rec, lin, b, fit)
+    else:  # only unknowns that enter nonlinearly: simulation error alone
+        b = estimate.Base([], [], np.zeros((0, 0)))
+        fit = Fit(dict(values), {}, np.zeros(0), np.zeros(0), np.zeros(len(cat.coordinates)),
+                  float("nan"), [])  # fmt: skip
+        fitted, refine = {}, True
     if refine is None:
         refine = bool(reg.nonlinear)
     if refine:
         names_ = list(reg.nonlinear) + [lin[i] for i in b.independent if lin[i] not in held]
         fit = _refine(full, rec, fit, names_)
+        for name in names_:  # what simulation error leaves undetermined is kept as given
+            worst = _undetermined(Fit(fit.theta, {name: fit.std[name]}, *[None] * 5), held,
+                                  values)  # fmt: skip
+            if worst is not None and name not in fit.weak:
+                held[name] = worst[1]
+                fit.theta[name] = values[name]
         _refuse_unphysical(full, fit, values)
     out = _result(base_model, full, setting, unknown, reg, b, fit, held)
     out.fitted = fitted
     out.noise = rec.noise_note
     return out
+
+
+def _check_rows(rows: regression.Rows, rec: regression.Record) -> None:
+    """ValueError when the record's equations overflow (values far outside the model's
+    range: wrong units) or when it holds no motion the equations can see."""
+    if not (np.isfinite(rows.A).all() and np.isfinite(rows.y).all()):
+        raise ValueError("data: the model's equations overflow on this record (values far "
+                         "outside its range); check that q, qd, u are in its SI units.")  # fmt: skip
+    if not np.abs(rows.A).any():
+        raise ValueError("data: the record does not excite the unknowns (their equations' "
+                         "columns are all zero); record the system under an exciting input.")
 
 
 def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
@@ -210,6 +235,9 @@ def _unknown(model, unknown) -> list[str]:
             raise ValueError(f"{model.name} has no inertial parameters; name the unknowns.")
     if isinstance(unknown, str):
         unknown = [unknown]
+    if len(unknown) == 0:
+        raise ValueError("unknown: empty; name at least one parameter to fit, or None for "
+                         f"the inertial ones ({', '.join(inertial(model))}).")  # fmt: skip
     for name in unknown:
         if name not in names:
             hint = did_you_mean(str(name), names)
@@ -228,7 +256,17 @@ def _given(model, given) -> dict[str, float]:
         if name not in known:
             hint = did_you_mean(str(name), known)
             raise ValueError(f"given: {model.name} has no parameter {name!r}.{hint}")
-    return {k: float(v) for k, v in given.items()}
+    out = {}
+    for k, v in given.items():
+        ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+        if not ok or not np.isfinite(v):
+            raise ValueError(f"given: {k} = {v!r}; a given value is a finite real number.")
+        out[k] = float(v)
+    try:
+        model.compile(**out)
+    except ValueError as exc:  # a sign, condition or body the model declares
+        raise ValueError(f"given: {exc}") from None
+    return out
 
 
 # ---- the fit -----------------------------------------------------------------------------

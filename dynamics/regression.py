@@ -106,6 +106,24 @@ def _noise(q, qd, noise) -> tuple[np.ndarray, np.ndarray | None, str]:
     return s, None, note
 
 
+MAX_STEP = 1.0
+"""Largest sampling step (s) of a record: slower sampling sees none of a mechanical
+system's dynamics (the model's own time scale is checked by `identify`)."""
+HUGE = 1e9
+"""Largest magnitude a record's value may have (SI units: positions in rad or m, rates,
+inputs in N or N*m); larger is a unit or file error, and overflows the equations."""
+
+
+def _real(value, key: str) -> np.ndarray:
+    """data[key] as a float array; ValueError (one line) unless it holds real numbers."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "iuf":
+        what = {"c": "complex numbers", "b": "booleans", "U": "text", "S": "bytes",
+                "O": "objects"}.get(a.dtype.kind, f"dtype {a.dtype}")  # fmt: skip
+        raise ValueError(f"data[{key!r}]: {what} ({a.dtype}); a record holds real numbers.")
+    return a.astype(float)
+
+
 def check_record(data, n: int, nu: int, noise=None) -> Record:
     """The record's arrays, checked: shapes, finite values, uniform sampling."""
     if not hasattr(data, "__getitem__") or not hasattr(data, "keys"):
@@ -113,30 +131,49 @@ def check_record(data, n: int, nu: int, noise=None) -> Record:
     missing = [k for k in ("t", "q", "u") if k not in data.keys()]
     if missing:
         raise ValueError(f"data: missing {', '.join(missing)} (needs t, q, [qd,] u).")
-    t = np.asarray(data["t"], dtype=float)
+    t = _real(data["t"], "t")
+    if t.ndim != 1 or len(t) < 20:
+        raise ValueError(f"data['t']: expected at least 20 samples in one axis, got {t.shape}.")
     T = len(t)
     arrays = {"q": (T, n), "u": (T, nu)} | ({"qd": (T, n)} if "qd" in data.keys() else {})
     got = {}
     for key, shape in arrays.items():
-        a = np.asarray(data[key], dtype=float)
+        a = _real(data[key], key)
         if a.ndim == 1 and shape[1] == 1:
             a = a[:, None]
         if a.shape != shape:
             raise ValueError(f"data[{key!r}]: expected shape {shape}, got {a.shape}.")
         got[key] = a
-    if t.ndim != 1 or T < 20:
-        raise ValueError(f"data['t']: expected at least 20 samples in one axis, got {t.shape}.")
     for key, a in [("t", t), *got.items()]:
-        if not np.isfinite(a).all():
-            raise ValueError(f"data[{key!r}] contains NaN or inf.")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            where = np.argwhere(bad)[0]
+            raise ValueError(f"data[{key!r}]: {a[tuple(where)]} at {tuple(where.tolist())}; "
+                             "a record holds finite numbers only.")  # fmt: skip
+        big = float(np.abs(a).max())
+        if big > HUGE:
+            raise ValueError(f"data[{key!r}]: a value of magnitude {big:.3g}; a record's values "
+                             f"are SI quantities below {HUGE:g} (check the units).")  # fmt: skip
+    still = np.ptp(got["q"], axis=0).max() == 0 and (
+        "qd" not in got or not np.abs(got["qd"]).any())  # fmt: skip
+    if still:
+        raise ValueError("data: the record does not move (every q constant): it cannot tell "
+                         "any parameter; record the system under an exciting input.")  # fmt: skip
     dt = np.diff(t)
     h = float(np.mean(dt))
     if not h > 0 or np.abs(dt - h).max() > 1e-6 * h:
         raise ValueError("data['t'] must be increasing with a uniform step (resample first).")
+    if h > MAX_STEP:
+        raise ValueError(f"data['t']: a step of {h:g} s; a record's time is in seconds and "
+                         f"its step at most {MAX_STEP:g} s (milliseconds given as seconds?).")
+    given = noise
     if noise is not None:
-        noise = tuple(float(v) for v in noise)
+        try:
+            noise = tuple(float(v) for v in noise)
+        except (TypeError, ValueError):
+            noise = ()
         if len(noise) != 2 or not all(v >= 0 and math.isfinite(v) for v in noise):
-            raise ValueError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
+            raise ValueError(f"noise: two stds >= 0 (positions, rates) or None, got {given!r}.")
     sigma_q, sigma_qd, note = _noise(got["q"], got.get("qd"), noise)
     return Record(t, got["q"], got.get("qd"), got["u"], h, noise, sigma_q, sigma_qd, note)
 
@@ -367,3 +404,38 @@ def random_regressor(reg: Regressor, rec: Record, p, seed: int) -> np.ndarray:
         qdd += np.einsum("bnm,bm->bn", np.linalg.pinv(B), gamma)
     rows = acceleration_rows(reg, T, np.hstack([q, qd]), qdd, U, p, 1)
     return rows.A
+
+
+TIME_SCALE = 100.0
+"""Largest ratio between the record's accelerations and the model's at the same states and
+inputs (either way) before the record's time base or units are refused: a model with its
+parameters off by the factors identification corrects (a few) stays far inside it, a time
+base off by a thousand (milliseconds) far outside."""
+
+
+def check_time_base(system, rec: Record) -> None:
+    """ValueError when the record's accelerations and the model's (`system`, at the
+    record's states and inputs) differ by more than TIME_SCALE: time not in seconds, or
+    values not in the model's units."""
+    h = rec.h
+    w = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
+    w = min(w, (len(rec.t) - 2) // 2 * 2 + 1)  # a record shorter than the window: all of it
+    qd = rec.qd if rec.qd is not None else savgol_filter(rec.q, w, POLYORDER, deriv=1,
+                                                         delta=h, axis=0)  # fmt: skip
+    measured = savgol_filter(qd, w, POLYORDER, deriv=1, delta=h, axis=0)
+    x = np.hstack([rec.q, qd])
+    try:
+        with np.errstate(all="ignore"):
+            model = system.state_derivative(rec.t, x, rec.u)[:, rec.q.shape[1]:]
+    except ValueError:
+        return  # states the model cannot take: the fit says so in its own words
+    a, b = np.sqrt(np.mean(measured**2)), np.sqrt(np.mean(model**2))
+    if not (np.isfinite(a) and np.isfinite(b)) or a == 0 or b == 0:
+        return
+    ratio = a / b
+    if ratio > TIME_SCALE or ratio < 1 / TIME_SCALE:
+        raise ValueError(
+            f"data['t']: with a step of {h:g} s the record's accelerations are {ratio:.3g} "
+            f"times the model's at the same states and inputs; t must be in seconds and q, "
+            f"qd, u in the model's SI units (milliseconds given as seconds?)."
+        )

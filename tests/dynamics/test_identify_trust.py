@@ -112,3 +112,57 @@ def test_what_the_record_does_not_determine_is_kept_and_named(arm):
     assert fit.parameters["Ibar1"] == arm.parameters["Ibar1"]
     assert np.isnan(fit.std["Ibar1"]) and "Ibar1" not in fit.precision
     assert_right_or_flagged(fit, ARM)
+
+
+@pytest.fixture(scope="module")
+def slow_arm(arm):
+    return simulate(arm.compile(**ARM), [0.1, 0.2, 0.0, 0.0], [6.0, 3.0], seconds=4.0)
+
+
+def _with(record, key, change):
+    out = {k: np.array(v, copy=True) for k, v in record.items()}
+    out[key] = change(out[key])
+    return out
+
+
+def _nan_at(a):
+    a[5, 0] = np.nan
+    return a
+
+
+BAD = [  # (what, record change or None, keyword arguments, the message's words)
+    ("complex positions", ("q", lambda a: a + 0j), {}, "data['q']: complex numbers"),
+    ("text rates", ("qd", lambda a: a.astype(str)), {}, "data['qd']: text"),
+    ("a NaN", ("q", _nan_at), {}, "data['q']: nan at (5, 0)"),
+    ("huge values", ("qd", lambda a: a * 1e300), {}, "of magnitude"),
+    ("milliseconds as seconds", ("t", lambda a: a * 1000), {}, "milliseconds given as seconds"),
+    ("seconds as milliseconds", ("t", lambda a: a / 1000), {}, "times the model's"),
+    ("no motion", None, {"data": "still"}, "does not move"),
+    ("a negative mass given", None, {"given": {"m1": -1.0}}, "given:"),
+    ("a NaN given", None, {"given": {"m1": float("nan")}}, "given: m1 = nan"),
+    ("text given", None, {"given": {"m1": "heavy"}}, "given: m1 = 'heavy'"),
+    ("no unknowns", None, {"unknown": []}, "unknown: empty"),
+    ("noise NaN", None, {"noise": (float("nan"), 0.0)}, "noise: two stds >= 0"),
+    ("noise a word", None, {"noise": "low"}, "noise: two stds >= 0"),
+    ("noise negative", None, {"noise": (-1.0, 0.0)}, "noise: two stds >= 0"),
+]
+
+
+@pytest.mark.parametrize("what, change, kwargs, words", BAD, ids=[b[0] for b in BAD])
+def test_bad_records_and_arguments_are_refused_in_one_line(arm, slow_arm, what, change, kwargs,
+                                                           words):  # fmt: skip
+    data = slow_arm if change is None else _with(slow_arm, *change)
+    kwargs = dict(kwargs)
+    if kwargs.pop("data", None) == "still":
+        data = slow_arm | {"q": np.zeros_like(slow_arm["q"]), "qd": np.zeros_like(slow_arm["qd"])}
+    with pytest.raises(ValueError) as err:
+        identify(arm, data, **kwargs)
+    message = str(err.value)
+    assert words in message and "\n" not in message, message
+
+
+def test_only_nonlinear_unknowns_are_refined_by_simulation_error(arm, slow_arm):
+    """l1 alone (it enters squared): no linear fit to make, simulation error alone (before:
+    'cannot reshape array of size 0')."""
+    fit = identify(arm, slow_arm, unknown=["l1"], given=ARM | {"l1": 0.45})
+    assert fit.parameters["l1"] == pytest.approx(0.5, rel=1e-3)
