@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -59,25 +60,93 @@ def _friction(text: str | None):
     return out
 
 
-def load_record(path: Path) -> dict:
-    """The arrays of a record file (.npz)."""
+MAX_SECONDS = 3600.0
+"""Longest record `--record` makes (s): an hour of simulated excitation at an env's 20 Hz
+is 72 000 steps, some minutes; a longer one is almost surely a typing error."""
+
+
+def _noise(text: str | None):
+    """--noise POSITIONS,RATES as two finite stds >= 0, or None when not given."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 2 or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise UserError(
+            f"--noise takes POSITIONS,RATES, two finite stds >= 0 (rad or m, and per second), "
+            f"e.g. 1e-3,1e-2; got {text!r}."
+        )
+    return values
+
+
+def _writable_dir(path: Path, option: str) -> None:
+    """UserError unless `path` is (or can be made as) a folder this process can write."""
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{option} {path}: a file is there; {option} takes a folder.")
+    parent = path
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise UserError(f"{option} {path}: cannot write in {parent} (permission denied).")
+
+
+def _record_path(path: Path) -> None:
+    """UserError unless `path` can take the record file, before any work."""
+    if path.is_dir():
+        raise UserError(f"--record {path}: a folder is there; --record takes a file (.npz).")
+    if path.suffix != ".npz":
+        raise UserError(f"--record {path}: a record is an .npz file; name it {path.name}.npz.")
+    _writable_dir(path.parent, "--record's folder")
+
+
+def load_record(path: Path, env_id: str | None = None) -> dict:
+    """The arrays of a record file (.npz, read without pickles), and, where the file says
+    which env it was recorded on, that env checked against `env_id`."""
+    import zipfile
+
     if not path.is_file():
-        raise UserError(f"No record at {path}.")
-    with np.load(path, allow_pickle=False) as f:
-        return {k: f[k] for k in f.files}
+        raise UserError(f"--data: no record at {path}" + (" (a folder)." if path.is_dir() else "."))
+    what = ("an .npz record (a zip of the arrays t, q, [qd,] u, as --record writes and "
+            "numpy.savez makes)")  # fmt: skip
+    try:
+        loaded = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise UserError(f"--data: {path} is not {what}: {str(exc).splitlines()[0]}") from None
+    if not isinstance(loaded, np.lib.npyio.NpzFile):
+        raise UserError(f"--data: {path} is a single array (.npy); a record is {what}.")
+    try:
+        with loaded as f:
+            data = {k: f[k] for k in f.files}
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise UserError(f"--data: {path} is damaged (truncated?): {exc}") from None
+    stored = str(data["env_id"]) if "env_id" in data else None
+    if env_id is not None and stored is not None and stored != env_id:
+        raise UserError(
+            f"--data: {path} was recorded on {stored}, not {env_id}; fit it with its own env "
+            "or record this one."
+        )
+    return data
 
 
 def write_results(env_id: str, result, data: dict, out: Path) -> None:
-    """parameters.yml, report.md and identification.png in `out`."""
+    """identification.png, report.md, then parameters.yml in `out`, each atomically and
+    only once all of them are made (a failure writes none of the three)."""
     import yaml
 
-    out.mkdir(parents=True, exist_ok=True)
     params = {"env_id": env_id, "parameters": result.parameters}
     if result.friction:
         params["friction"] = result.friction
-    write_atomic(out / "parameters.yml", yaml.safe_dump(params, sort_keys=False))
-    write_atomic(out / "report.md", report(env_id, result, data))
+    if result.undetermined:
+        params["undetermined"] = dict(result.undetermined)
+    params["noise"] = result.noise
+    text = yaml.safe_dump(params, sort_keys=False)
+    markdown = report(env_id, result, data)
+    out.mkdir(parents=True, exist_ok=True)
     figure(env_id, result, data, out / "identification.png")
+    write_atomic(out / "report.md", markdown)
+    write_atomic(out / "parameters.yml", text)
 
 
 def report(env_id: str, result, data: dict) -> str:
@@ -86,9 +155,8 @@ def report(env_id: str, result, data: dict) -> str:
     if "plant_names" in data:
         truth = dict(zip(data["plant_names"].tolist(), data["plant_values"].tolist()))
     lines = [f"# Identification of {env_id}", ""]
-    if "noise" in data:
-        noise = data["noise"].tolist()
-        lines.append(f"Record: {len(data['t'])} samples, sensor noise std {noise}.")
+    step = float(data["t"][1] - data["t"][0])
+    lines.append(f"Record: {len(data['t'])} samples at {1 / step:.4g} Hz.")
     lines += [
         f"Condition number of the base regressor: {result.condition:.3g}; residual rms per "
         f"coordinate: {', '.join(f'{k} {v:.3g}' for k, v in result.residual_rms.items())}.",
@@ -103,11 +171,19 @@ def report(env_id: str, result, data: dict) -> str:
             value = result.friction[coord][kind]
         s = result.std.get(name, math.nan)
         interval = f"[{value - 1.96 * s:.5g}, {value + 1.96 * s:.5g}]" if s == s else ""
-        note = result.unidentifiable.get(name, "")
+        note = result.undetermined.get(name, "")
+        if note:
+            note = f"**not determined**: {note}"
         if not note and name in result.nonlinear:
             note = "nonlinear: refined by simulation error"
         true = f"{truth[name]:.5g}" if name in truth else ""
         lines.append(f"| {name} | {value:.6g} | {s:.2g} | {interval} | {true} | {note} |")
+    if result.undetermined:
+        lines += ["", "Not determined by this record (kept at their given values, not fitted):", ""]
+        lines += [f"- {k}: {why}" for k, why in result.undetermined.items()]
+    lines += ["", f"Noise: {result.noise}."]
+    for warning in getattr(result, "warnings", ()):
+        lines += ["", f"Warning: {warning}"]
     lines += ["", "Base parameters (what the equations determine):", ""]
     for text, value in result.base.items():
         lines.append(f"- {text} = {value:.6g} (std {result.base_std[text]:.2g})")
@@ -165,8 +241,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", type=Path, help="fit this record (.npz with t, q, [qd,] u)")
     p.add_argument("--out", type=Path, help="where --data writes its results")
     p.add_argument("--plant", nargs="*", metavar="NAME=VALUE", help="plant parameters (--record)")
-    p.add_argument("--noise", default="0,0", help="sensor noise std: POSITIONS,RATES (--record)")
-    p.add_argument("--seconds", type=float, default=20.0, help="record length (s)")
+    p.add_argument(
+        "--noise",
+        help="sensor noise std POSITIONS,RATES: --record adds it to the record (default 0,0); "
+        "--data fits with it (default: the record's own noise key, else estimated from it)",
+    )
+    p.add_argument("--seconds", type=float, default=20.0,
+                   help=f"record length (s), at most {MAX_SECONDS:g}")  # fmt: skip
     p.add_argument("--fraction", type=float, default=0.5, help="excitation peak / action range")
     p.add_argument("--feedback", choices=["none", "lqr"], help="default: open loop, then LQR")
     p.add_argument("--seed", type=int, default=0)
@@ -189,27 +270,36 @@ def main(argv=None) -> int:
         env_id = check_env_id(args.env_id, lagrange=True)
         if (args.record is None) == (args.data is None):
             raise UserError("give one of --record FILE or --data FILE.")
+        noise = _noise(args.noise)
         if args.record is not None:
             from .control.recording import record
 
-            noise = tuple(float(v) for v in args.noise.split(","))
-            data = record(env_id, args.seconds, _assignments(args.plant, "--plant"), noise,
-                          args.fraction, args.seed, args.feedback, args.candidates)  # fmt: skip
+            if not 0 < args.seconds <= MAX_SECONDS:
+                raise UserError(f"--seconds must be in (0, {MAX_SECONDS:g}], got {args.seconds:g}.")
+            _record_path(args.record)
+            plant = _assignments(args.plant, "--plant")
+            data = record(env_id, args.seconds, plant, noise or (0.0, 0.0), args.fraction,
+                          args.seed, args.feedback, args.candidates)  # fmt: skip
             with atomic_path(args.record, suffix=".npz") as tmp:
                 np.savez(tmp, **data)
             how = "open loop" if str(data["feedback"]) == "none" else f"under {data['feedback']}"
-            print(f"recorded {len(data['t'])} samples ({how}) to {args.record}")
+            rate = 1.0 / float(data["t"][1] - data["t"][0])
+            print(f"recorded {len(data['t'])} samples at {rate:.4g} Hz ({how}) to {args.record}")
             return 0
         if args.out is None:
             raise UserError("--data needs --out DIR.")
-        data = load_record(args.data)
+        _writable_dir(args.out, "--out")
+        data = load_record(args.data, env_id)
         unknown = args.unknown.split(",") if args.unknown else None
         start = time.perf_counter()
         result = fit(env_id, data, unknown, _friction(args.friction),
-                     _assignments(args.given, "--given"))  # fmt: skip
+                     _assignments(args.given, "--given"), noise)  # fmt: skip
         took = time.perf_counter() - start
         write_results(env_id, result, data, args.out)
         print(report(env_id, result, data))
+        if result.undetermined:
+            print("NOT DETERMINED by this record (kept at their given values): "
+                  + ", ".join(result.undetermined))  # fmt: skip
         print(f"identified in {took:.2f} s; wrote {args.out}/parameters.yml, report.md, "
               "identification.png")  # fmt: skip
     except UserError as exc:

@@ -15,7 +15,7 @@ on other parameters is never resumed or reused as this one); `agents.check` trai
 reports in directories named with their hash (`tag`).
 
 Refused in one line, before any work: a missing or unreadable file, a file that is not
-YAML of names and numbers, a name the env's model does not declare (with the closest
+YAML of names and numbers, a file identified on another env (its `env_id`), a name the env's model does not declare (with the closest
 name), a value that is not a finite number.
 """
 
@@ -70,6 +70,12 @@ def load(path: str | Path, env_id: str) -> dict[str, float]:
         at = f" (line {where.line + 1})" if where is not None else ""
         raise UserError(f"--params: {path} is not valid YAML{at}.") from None
     if isinstance(data, dict) and isinstance(data.get("parameters"), dict):
+        stored = data.get("env_id")
+        if stored is not None and str(stored) != env_id:
+            raise UserError(
+                f"--params: {path} was identified on {stored}, not {env_id}; give the file "
+                "identified on this env (its model's parameters differ)."
+            )
         if data.get("friction"):
             warnings.warn(
                 f"{path}: the friction estimates are not parameters of the model and are "

@@ -48,7 +48,7 @@ def record(
     parameters (`plant_names`, `plant_values`), the noise and the env id, for the report."""
     if not seconds > 0:
         raise UserError(f"seconds must be positive, got {seconds}.")
-    if len(noise) != 2 or min(noise) < 0:
+    if len(noise) != 2 or not all(np.isfinite(v) and v >= 0 for v in noise):
         raise UserError(f"noise must be two stds >= 0 (positions, rates), got {noise}.")
     if int(candidates) < 1:
         raise UserError(f"candidates must be at least 1, got {candidates}.")
@@ -100,12 +100,15 @@ def model_of(env_id: str):
     return as_model(task_of(env_id).model)
 
 
-def fit(env_id: str, data: dict, unknown=None, friction=None, given=None):
-    """`dynamics.identify.identify` on an env's model."""
+def fit(env_id: str, data: dict, unknown=None, friction=None, given=None, noise=None):
+    """`dynamics.identify.identify` on an env's model. noise: the sensors' stds where known;
+    None takes the record's own `noise` entry (a record made by `record` carries it), else
+    leaves it to `identify` to estimate."""
     from dynamics.identify import identify
 
     record = {k: data[k] for k in ("t", "q", "qd", "u") if k in data}
-    noise = tuple(data["noise"].tolist()) if "noise" in data else None
+    if noise is None and "noise" in data:
+        noise = tuple(np.asarray(data["noise"], dtype=float).tolist())
     try:
         return identify(model_of(env_id), record, unknown, friction, given=given, noise=noise)
     except (TypeError, ValueError) as exc:

@@ -49,7 +49,7 @@ def test_record_then_fit_writes_parameters_that_gym_make_takes(tmp_path, capsys)
     [
         ([ARM], "give one of --record FILE or --data FILE"),
         ([ARM, "--record", "x.npz", "--plant", "m2"], "NAME=VALUE"),
-        ([ARM, "--data", "missing.npz", "--out", "o"], "No record at"),
+        ([ARM, "--data", "missing.npz", "--out", "o"], "--data: no record at"),
         ([ARM, "--record", "x.npz", "--plant", "m_2=1"], "Did you mean 'm2'"),
         (["Lagrange/TwoLinkArm", "--record", "x.npz"], "Did you mean"),
     ],
@@ -84,3 +84,98 @@ def test_the_worked_example_runs_as_written(tmp_path, monkeypatch, capsys):
     nominal = float(re.search(r"^nominal ([\d.]+)$", out, re.M).group(1))
     found = float(re.search(r"^identified ([\d.]+)$", out, re.M).group(1))
     assert nominal < 0.5 and found >= 0.95
+
+
+@pytest.fixture(scope="module")
+def arm_record(tmp_path_factory):
+    """A short noisy record of the arm (its env's 20 Hz), as --record writes it."""
+    from agents.control.recording import record
+
+    path = tmp_path_factory.mktemp("rec") / "arm.npz"
+    data = record(ARM, 6.0, {"m2": 0.5}, (1e-3, 1e-2))
+    np.savez(path, **data)
+    return path
+
+
+def _bad_files(folder: Path, good: Path) -> dict:
+    text = folder / "notes.npz"
+    text.write_text("t,q,u\n0,0,0\n")
+    truncated = folder / "cut.npz"
+    truncated.write_bytes(good.read_bytes()[:300])
+    single = folder / "q.npy"
+    np.save(single, np.zeros((30, 2)))
+    other = folder / "bead.npz"
+    np.savez(other, **(dict(np.load(good)) | {"env_id": np.array("Lagrange/Bead-v1")}))
+    occupied = folder / "taken"
+    occupied.write_text("a file")
+    (folder / "adir").mkdir()
+    return dict(text=text, truncated=truncated, single=single, other=other, occupied=occupied,
+                adir=folder / "adir")  # fmt: skip
+
+
+CLI_BAD = [  # argv with {placeholders} filled from _bad_files and the record, the error's words
+    ("{ARM} --record x.npz --noise low", "--noise takes POSITIONS,RATES"),
+    ("{ARM} --record x.npz --noise nan,0", "--noise takes POSITIONS,RATES"),
+    ("{ARM} --record x.npz --noise 1e-3", "--noise takes POSITIONS,RATES"),
+    ("{ARM} --record x.npz --seconds 1e7", "--seconds must be in (0, 3600]"),
+    ("{ARM} --record {adir}", "a folder is there"),
+    ("{ARM} --record arm.txt", "a record is an .npz file"),
+    ("{ARM} --data {record} --out {occupied}", "--out {occupied}: a file is there"),
+    ("{ARM} --data {text} --out o", "is not an .npz record"),
+    ("{ARM} --data {truncated} --out o", "is not an .npz record"),
+    ("{ARM} --data {single} --out o", "is a single array (.npy)"),
+    ("{ARM} --data {other} --out o", "was recorded on Lagrange/Bead-v1, not " + ARM),
+    ("{ARM} --data {adir} --out o", "no record at"),
+    ("{ARM} --data {record} --out o --given m1=-1", "given:"),
+    ("{ARM} --data {record} --out o --unknown m1,l1_x", "Did you mean"),
+]
+
+
+@pytest.mark.parametrize("argv, words", CLI_BAD, ids=[c[0] for c in CLI_BAD])
+def test_bad_command_lines_end_in_one_line_before_any_work(argv, words, arm_record, tmp_path,
+                                                           monkeypatch, capsys):  # fmt: skip
+    monkeypatch.chdir(tmp_path)
+    names = _bad_files(tmp_path, arm_record) | {"record": arm_record, "ARM": ARM}
+    with pytest.raises(SystemExit) as stop:
+        identify.main(argv.format(**names).split())
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert words.format(**names) in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "x.npz").exists()
+
+
+def test_out_in_a_folder_that_cannot_be_written_is_refused_first(arm_record, tmp_path, capsys):
+    import os
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        if os.access(locked, os.W_OK):
+            pytest.skip("running as a user who may write anywhere")
+        with pytest.raises(SystemExit):
+            identify.main([ARM, "--data", str(arm_record), "--out", str(locked / "fit")])
+        assert "permission denied" in capsys.readouterr().err
+    finally:
+        locked.chmod(0o700)
+
+
+def test_noise_on_the_command_line_is_used_with_data(arm_record, tmp_path, capsys):
+    """--noise with --data is the fit's noise (before: silently ignored); the written
+    parameters.yml says what noise was assumed and what the record left undetermined."""
+    out = tmp_path / "fit"
+    assert identify.main([ARM, "--data", str(arm_record), "--out", str(out), "--noise",
+                          "2e-3,3e-2"]) == 0  # fmt: skip
+    written = yaml.safe_load((out / "parameters.yml").read_text())
+    assert written["noise"] == "given: std 0.002, 0.03"
+    assert "Noise: given: std 0.002, 0.03" in (out / "report.md").read_text()
+
+
+def test_params_of_another_env_are_refused(tmp_path):
+    from agents import params
+    from agents.common import UserError
+
+    path = tmp_path / "parameters.yml"
+    path.write_text(yaml.safe_dump({"env_id": "Lagrange/Bead-v1", "parameters": {"m": 1.0}}))
+    with pytest.raises(UserError, match="identified on Lagrange/Bead-v1, not " + ARM):
+        params.load(path, ARM)
