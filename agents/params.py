@@ -15,8 +15,8 @@ on other parameters is never resumed or reused as this one); `agents.check` trai
 reports in directories named with their hash (`tag`).
 
 Refused in one line, before any work: a missing or unreadable file, a file that is not
-YAML of names and numbers, a file identified on another env (its `env_id`), a name the env's model does not declare (with the closest
-name), a value that is not a finite number.
+YAML of names and numbers, a file identified on another env (its `env_id`), a name the
+env's model does not declare (with the closest name), a value that is not a finite number.
 """
 
 from __future__ import annotations

@@ -209,7 +209,7 @@ def _check_rows(rows: regression.Rows, rec: regression.Record) -> None:
     range: wrong units) or when it holds no motion the equations can see."""
     if not (np.isfinite(rows.A).all() and np.isfinite(rows.y).all()):
         raise ValueError("data: the model's equations overflow on this record (values far "
-                         "outside its range); check that q, qd, u are in its SI units.")  # fmt: skip
+                         "outside its range); check that q, qd, u are in SI units.")
     if not np.abs(rows.A).any():
         raise ValueError("data: the record does not excite the unknowns (their equations' "
                          "columns are all zero); record the system under an exciting input.")
