@@ -246,6 +246,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="sensor noise std POSITIONS,RATES: --record adds it to the record (default 0,0); "
         "--data fits with it (default: the record's own noise key, else estimated from it)",
     )
+    p.add_argument("--rate", type=float, default=100.0,
+                   help="samples per second of --record (the env stepped at this rate; 100)")
     p.add_argument("--seconds", type=float, default=20.0,
                    help=f"record length (s), at most {MAX_SECONDS:g}")  # fmt: skip
     p.add_argument("--fraction", type=float, default=0.5, help="excitation peak / action range")
@@ -278,8 +280,10 @@ def main(argv=None) -> int:
                 raise UserError(f"--seconds must be in (0, {MAX_SECONDS:g}], got {args.seconds:g}.")
             _record_path(args.record)
             plant = _assignments(args.plant, "--plant")
+            if not (math.isfinite(args.rate) and 1 <= args.rate <= 10_000):
+                raise UserError(f"--rate must be in [1, 10000] per second, got {args.rate:g}.")
             data = record(env_id, args.seconds, plant, noise or (0.0, 0.0), args.fraction,
-                          args.seed, args.feedback, args.candidates)  # fmt: skip
+                          args.seed, args.feedback, args.candidates, args.rate)  # fmt: skip
             with atomic_path(args.record, suffix=".npz") as tmp:
                 np.savez(tmp, **data)
             how = "open loop" if str(data["feedback"]) == "none" else f"under {data['feedback']}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -146,6 +147,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--episodes", type=positive_int, default=100, help="seeded episodes (100)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="first seed (0)")
     params.add_option(parser)
+    parser.add_argument(
+        "--plant",
+        metavar="FILE.yml",
+        type=Path,
+        help="score the design on a plant with these parameters instead (a parameters.yml or "
+        "a mapping; the rest nominal): design on --params (or the nominal model), evaluate on "
+        "the machine; both with the nominal env's actuators (max_input)",
+    )
     parser.add_argument("--scale", type=float, default=1.0, help="multiple of the start region")
     parser.add_argument("--plot", metavar="FILE", help="save the closed-loop response here")
     parser.add_argument(
@@ -171,8 +180,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.plot:
             check_output_file(args.plot, "--plot")
         env_id = check_env_id(args.env_id, lagrange=True)
+        plant = _plant(env_id, args.plant) if args.plant else None
+        motors = _motors(env_id) if args.plant else {}  # the nominal env's, before --params
         with params.applied(env_id, args.params and params.load(args.params, env_id)):
-            return run(args)
+            return run(args) if plant is None else run_on_plant(args, env_id, plant, motors)
     except UncontrollableError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
@@ -225,6 +236,54 @@ def run(args) -> int:
     if args.plot:
         plot_response(env_id, args.plot, args.seed, Q=args.q, R=args.r)
         print(f"saved {args.plot}")
+    return 0
+
+
+def _plant(env_id: str, path: Path) -> dict:
+    """The plant's gym.make keyword arguments: every model parameter (nominal, then the
+    file's) and the nominal env's actuator limits, so that what the design was not made on
+    is the machine's and nothing else."""
+    from envs.resolved import compile_system
+
+    from .common import task_of
+
+    given = params.load(path, env_id)
+    nominal = dict(compile_system(task_of(env_id).model, {}).parameters)
+    return nominal | given
+
+
+def _motors(env_id: str) -> dict:
+    """The nominal env's actuator limits (`max_input`) as a gym.make keyword argument."""
+    env = gym.make(env_id)
+    try:
+        limits = getattr(env.unwrapped, "max_input", None)
+        return {} if limits is None else {"max_input": [float(v) for v in np.ravel(limits)]}
+    finally:
+        env.close()
+
+
+def run_on_plant(args, env_id: str, plant: dict, motors: dict) -> int:
+    """The design made on the model the command's env has (nominal, or --params), scored
+    on `plant` (--plant), beside a design made on the plant itself (what a perfect model
+    would give) and zero input."""
+    design_params = params.current(env_id)  # what --params applied (none: nominal)
+    design_env = gym.make(env_id, **motors)
+    design_env.reset(seed=args.seed)
+    said = ", ".join(f"{k}={v:g}" for k, v in design_params.items()) or "its nominal values"
+    print(f"{env_id}: LQR designed on the model with {said}; scored on the plant of "
+          f"{args.plant}")  # fmt: skip
+    print(describe(LQRPolicy(design_env, Q=args.q, R=args.r).design()))
+    designs = (
+        ("LQR (this design)", lambda vec: LQRPolicy(design_env, Q=args.q, R=args.r)),
+        ("LQR designed on the plant", lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)),
+        ("zero input", ZeroPolicy),
+    )
+    for name, pol in designs:
+        r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale,
+                          **plant, **motors)  # fmt: skip
+        print(f"{name:>26}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}) "
+              f"on the plant, return {r.returns.mean():.2f} (sd {r.returns.std():.2f})")
+    design_env.close()
     return 0
 
 

@@ -19,10 +19,10 @@ ARM = "Lagrange/TwoLinkArm-v1"
 
 @pytest.mark.slow  # records, fits and draws the figure: ~7 s
 def test_record_then_fit_writes_parameters_that_gym_make_takes(tmp_path, capsys):
-    """A noise-free record of a plant off nominal (m2 x 0.5) at the env's 20 Hz is fitted
-    to 1 % (the regression is exact up to its quadrature's error, of order (omega h)^4:
-    measured 3e-3 at h = 0.05 s, under LQR's fast corrections; 1e-7 at 100 Hz), and the
-    results carry everything the report promises."""
+    """A noise-free record of a plant off nominal (m2 x 0.5) at the recorder's 100 Hz is
+    fitted to 1 % (the regression is exact up to its quadrature's error, of order
+    (omega h)^4: measured 1e-7 at 100 Hz, 3e-3 at the env's own 20 Hz under LQR's fast
+    corrections), and the results carry everything the report promises."""
     record = tmp_path / "arm.npz"
     assert identify.main([ARM, "--record", str(record), "--plant", "m2=0.5",
                           "--seconds", "8", "--candidates", "2"]) == 0  # fmt: skip
@@ -179,3 +179,28 @@ def test_params_of_another_env_are_refused(tmp_path):
     path.write_text(yaml.safe_dump({"env_id": "Lagrange/Bead-v1", "parameters": {"m": 1.0}}))
     with pytest.raises(UserError, match="identified on Lagrange/Bead-v1, not " + ARM):
         params.load(path, ARM)
+
+
+@pytest.mark.slow  # three designs scored over 100 episodes each: ~6 s
+def test_lqr_designed_on_one_parameter_set_is_scored_on_a_plant_of_another(tmp_path, capsys):
+    """--plant: the nominal design on the arm with m2 x 0.25 fails (the robustness
+    benchmark's case, below 50 %), the design made on that plant succeeds."""
+    from agents import lqr
+
+    plant = tmp_path / "true.yml"
+    plant.write_text("m2: 0.25\n")
+    assert lqr.main([ARM, "--plant", str(plant)]) == 0
+    out = capsys.readouterr().out
+    this = float(re.search(r"LQR \(this design\): success \d+/100 \((\d+)%\)", out).group(1))
+    oracle = float(re.search(r"designed on the plant: success \d+/100 \((\d+)%\)", out).group(1))
+    assert this < 50 and oracle >= 95
+
+
+def test_plant_of_another_env_is_refused_before_any_work(tmp_path, capsys):
+    from agents import lqr
+
+    plant = tmp_path / "bead.yml"
+    plant.write_text(yaml.safe_dump({"env_id": "Lagrange/Bead-v1", "parameters": {"m": 1.0}}))
+    with pytest.raises(SystemExit):
+        lqr.main([ARM, "--plant", str(plant)])
+    assert "identified on Lagrange/Bead-v1" in capsys.readouterr().err
