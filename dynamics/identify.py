@@ -44,6 +44,7 @@ Parameters the data cannot determine are held at their given values and listed i
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,6 +112,8 @@ class Identification:
     each is kept at its given value (`parameters`), never written as a fitted value."""
     precision: dict[str, float] = field(default_factory=dict)
     """{unknown: relative standard error} of every estimated unknown (each <= REL_STD)."""
+    warnings: list[str] = field(default_factory=list)
+    """What about the record makes the estimates doubtful (also issued as warnings)."""
     noise: str = ""
     """The sensors' noise the fit assumed: given, or estimated from the record (and where it
     could not be told from the motion, said so)."""
@@ -201,6 +204,15 @@ def identify(
     out = _result(base_model, full, setting, unknown, reg, b, fit, held)
     out.fitted = fitted
     out.noise = rec.noise_note
+    distortion = regression.rate_distortion(rec, window)
+    if distortion > regression.DISTORTION:
+        out.warnings.append(
+            f"positions only at {1 / rec.h:.3g} Hz: the rates derived from them change by "
+            f"{distortion:.0%} between filter windows, so the motion is too fast for this "
+            "sampling and the estimates are likely shrunk; record rates (qd) or sample faster"
+        )
+    for text in out.warnings:
+        warnings.warn(text, stacklevel=2)
     return out
 
 

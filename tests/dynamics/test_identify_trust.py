@@ -166,3 +166,17 @@ def test_only_nonlinear_unknowns_are_refined_by_simulation_error(arm, slow_arm):
     'cannot reshape array of size 0')."""
     fit = identify(arm, slow_arm, unknown=["l1"], given=ARM | {"l1": 0.45})
     assert fit.parameters["l1"] == pytest.approx(0.5, rel=1e-3)
+
+
+def test_positions_only_sampled_too_slowly_for_the_motion_is_warned(arm, fast_arm):
+    """The fast arm's positions at 20 Hz: the cubic filter flattens its rates (the fit comes
+    out 17-39 % off); the result and a warning say so. At 100 Hz, recorded rates: none."""
+    slow = {k: fast_arm[k][::5] for k in ("t", "q", "u")}
+    with pytest.warns(UserWarning, match="positions only at 20 Hz"):
+        fit = identify(arm, slow)
+    assert fit.warnings and "sample faster" in fit.warnings[0]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert identify(arm, fast_arm).warnings == []
