@@ -6,18 +6,20 @@
 For each case a hidden plant has some parameters off nominal by a factor at which the
 nominal model-based controller fails in the robustness benchmark (benchmarks/robustness.py,
 the README's table of where each falls below 50 %). The plant is recorded under an exciting
-input (`agents.control.recording`: 20 s, sensor noise std 1e-3 rad or m and 1e-2 per s), its
-inertial parameters are identified from the record (`dynamics.identify`, the model's other
-parameters as nominal), and the controller is designed again on the identified model
-(`gym.make(env_id, **identified)`). Both designs, and a design on the hidden plant's true
-parameters (the oracle: what a perfect identification would give), then run the same
-seeded episodes on the hidden plant; `--records N` repeats the record (its excitation and
-noise seeded afresh), identification and redesign N times, since a design can sit on a
-knife's edge: the acrobot's plan + TVLQR designed for m1 = 0.75 (its true value) fails on
-a plant with m1 x 0.75 in every episode, designed for 0.76 succeeds in every one; the case
-here, every mass and inertia x 1.25, has an oracle that succeeds. The actuators are the
-nominal env's throughout (`max_input`): where a task derives its input limits from the
-parameters (the arm's holding torques), a heavier plant must not get stronger motors.
+input (`agents.control.recording`: 20 s at 100 Hz, sensor noise std 1e-3 rad or m and 1e-2
+per s), its inertial parameters are identified from the record (`dynamics.identify`, the
+model's other parameters as nominal, the noise estimated from the record, not given; each
+estimate judged right, flagged as undetermined, or wrong), and the controller is designed
+again on the identified model (`gym.make(env_id, **identified)`). Both designs, and a design
+on the hidden plant's true parameters (the oracle: what a perfect identification would
+give), then run the same seeded episodes on the hidden plant; `--records N` repeats the
+record (its excitation and noise seeded afresh), identification and redesign N times, since
+a design can sit on a knife's edge: the acrobot's plan + TVLQR designed for m1 = 0.75 (its
+true value) fails on a plant with m1 x 0.75 in every episode, designed for 0.76 succeeds in
+every one; the case here, every mass and inertia x 1.25, has an oracle that succeeds. The
+actuators are the nominal env's throughout (`max_input`): where a task derives its input
+limits from the parameters (the arm's holding torques), a heavier plant must not get
+stronger motors.
 Writes results.md and results.json to --out, atomically.
 """
 
@@ -59,7 +61,8 @@ CASES = (
     Case("examples.cart_pole:Examples/CartPole-v0", "lqr", {"m_cart": 0.1},
          "LQR 0 % at m_cart x 0.1"),
     Case("examples.furuta:Examples/Furuta-v0", "lqr", {"J": 0.1}, "LQR 0 % at J x 0.1"),
-    Case("Lagrange/RollingDisk-v1", "lqr", {"I": 0.25}, "LQR below 50 % at I x 0.25"),
+    Case("Lagrange/RollingDisk-v1", "lqr", {"I": 3.0},
+         "LQR 0 % at I x 3 (a solid cylinder 0.73 m long: J = m r^2 / 2 stays, J <= 2 I)"),
 )  # fmt: skip
 NOISE = (1e-3, 1e-2)
 
@@ -111,13 +114,29 @@ def identified(env_id: str, plant: dict, seed: int, log) -> dict:
     data = record(env_id, 20.0, plant, NOISE, seed=seed)
     record_s = time.perf_counter() - start
     start = time.perf_counter()
-    result = fit(env_id, data)
+    result = fit(env_id, {k: data[k] for k in ("t", "q", "qd", "u")})  # noise not given
     identify_s = time.perf_counter() - start
     log(f"  record {seed}: {data['t'][-1]:.1f} s ({data['feedback']}) in {record_s:.1f} s, "
         f"identified in {identify_s:.2f} s")  # fmt: skip
     return dict(recorded_s=float(data["t"][-1]), feedback=str(data["feedback"]),
-                identify_s=identify_s, parameters=result.parameters, unknown=result.unknown,
-                unidentifiable=list(result.unidentifiable))  # fmt: skip
+                rate=1.0 / float(data["t"][1] - data["t"][0]), identify_s=identify_s,
+                parameters=result.parameters, unknown=result.unknown, std=result.std,
+                unidentifiable=list(result.unidentifiable),
+                undetermined=list(result.undetermined))  # fmt: skip
+
+
+def verdicts(fitted: dict, truth: dict) -> dict:
+    """Per unknown: 'right' (the truth within 3 standard errors, that error at most 25 % of
+    the value), 'flagged' (listed as undetermined, kept at its given value) or 'wrong'."""
+    out = {}
+    for name in fitted["unknown"]:
+        if name in fitted["undetermined"]:
+            out[name] = "flagged"
+            continue
+        value, s = fitted["parameters"][name], fitted["std"][name]
+        ok = abs(value - truth[name]) <= 3 * s and s <= 0.25 * abs(value)
+        out[name] = "right" if ok else "wrong"
+    return out
 
 
 def run_case(case: Case, episodes: int, seed: int, records: int, log) -> dict:
@@ -139,8 +158,9 @@ def run_case(case: Case, episodes: int, seed: int, records: int, log) -> dict:
         fitted = identified(env_id, plant, seed + k, log)
         fitted["errors"] = {
             name: fitted["parameters"][name] / truth[name] - 1 for name in fitted["unknown"]
-            if name in truth and name not in fitted["unidentifiable"]
+            if name in truth and name not in fitted["undetermined"]
         }  # fmt: skip
+        fitted["verdict"] = verdicts(fitted, truth)
         fitted["score"] = score(case.controller, env_id, fitted["parameters"] | motors, plant,
                                 episodes, seed)  # fmt: skip
         log(f"    errors {', '.join(f'{a} {v:+.2%}' for a, v in fitted['errors'].items())}; "
@@ -152,8 +172,9 @@ def run_case(case: Case, episodes: int, seed: int, records: int, log) -> dict:
 def table(rows: list[dict]) -> str:
     lines = [
         "| env | controller | hidden plant | nominal design | identified design (each "
-        "record) | oracle design | largest parameter error | record | identify (s) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "record) | oracle design | largest parameter error | right / flagged / wrong | "
+        "record | identify (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def cell(d):
@@ -162,7 +183,9 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         fits = r["identified"]
         worst = max(((k, v) for f in fits for k, v in f["errors"].items()),
-                    key=lambda kv: abs(kv[1]))  # fmt: skip
+                    key=lambda kv: abs(kv[1]), default=("-", 0.0))  # fmt: skip
+        said = [v for f in fits for v in f["verdict"].values()]
+        counts = " / ".join(str(said.count(k)) for k in ("right", "flagged", "wrong"))
         hidden = ", ".join(f"{k} = {v:.4g}" for k, v in r["hidden"].items())
         found = "; ".join(cell(f["score"]) for f in fits)
         feedback = ", ".join(sorted({f["feedback"] for f in fits}))
@@ -171,8 +194,9 @@ def table(rows: list[dict]) -> str:
             seconds += f" first, {max(f['identify_s'] for f in fits[1:]):.2f} later"
         lines.append(
             f"| {r['env_id']} | {r['controller']} | {hidden} | {cell(r['nominal'])} | "
-            f"{found} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | "
-            f"{min(f['recorded_s'] for f in fits):.0f} s, {feedback} | {seconds} |"
+            f"{found} | {cell(r['oracle'])} | {worst[0]} {worst[1]:+.2%} | {counts} | "
+            f"{min(f['recorded_s'] for f in fits):.0f} s at {fits[0]['rate']:.0f} Hz, "
+            f"{feedback} | {seconds} |"
         )
     return "\n".join(lines) + "\n"
 
