@@ -47,6 +47,7 @@ def _assignments(items, label: str) -> dict:
 
 
 def _friction(text: str | None):
+    """--friction: all, or COORD=KIND and JOINT:RATE=KIND entries separated by commas."""
     if text in (None, "", "none"):
         return None
     if text == "all":
@@ -54,9 +55,11 @@ def _friction(text: str | None):
     out = {}
     for part in text.split(","):
         name, sep, kind = part.partition("=")
-        if not sep:
-            raise UserError(f"--friction takes all or COORD=KIND,..., got {text!r}.")
-        out[name] = kind
+        if not sep or not name:
+            raise UserError(f"--friction takes all, or COORD=KIND and JOINT:RATE=KIND entries "
+                            f"(e.g. elbow:theta2-theta1=viscous), got {text!r}.")  # fmt: skip
+        joint, colon, rate = name.partition(":")
+        out[joint] = (rate, kind) if colon else kind
     return out
 
 
@@ -260,7 +263,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="excitations tried on the nominal model; the best conditioned is run",
     )
     p.add_argument("--unknown", help="comma-separated parameters (default: inertial)")
-    p.add_argument("--friction", help="all, or COORD=viscous|coulomb|viscous+coulomb,...")
+    p.add_argument(
+        "--friction",
+        help="all, or COORD=KIND and JOINT:RATE=KIND entries, KIND viscous|coulomb|"
+        "viscous+coulomb, RATE a combination of coordinates such as theta2-theta1",
+    )
     p.add_argument("--given", nargs="*", metavar="NAME=VALUE", help="known parameter values")
     return p
 

@@ -88,7 +88,8 @@ class Identification:
         base_std their standard errors.
     unidentifiable: {parameter: why}, the unknowns the equations do not determine.
     nonlinear: the unknowns that enter nonlinearly (refined by simulation error).
-    friction: {coordinate: {"viscous": b, "coulomb": c}} where friction was fitted.
+    friction: {joint: {"viscous": b, "coulomb": c}} where friction was fitted (a joint is a
+        coordinate or a joint named with its rate).
     residual_rms: {coordinate: rms of the fit's equation residual} (generalised forces).
     condition: condition number of the record's base regressor (unit-norm columns);
         above about 1e4 the record excites some combination poorly.
@@ -142,7 +143,9 @@ def identify(
     model: a `dynamics.Model`, a registered name, a ModelSpec or a factory.
     data: mapping with t (T,), q (T, n), optional qd (T, n), u (T, n_u).
     unknown: parameter names (default: the inertial ones, unit kg or kg*m^2).
-    friction: None, "all", or {coordinate: "viscous" | "coulomb" | "viscous+coulomb"}.
+    friction: None, "all", or a mapping of {coordinate: kind} and {joint: (rate, kind)}
+        (kind "viscous" | "coulomb" | "viscous+coulomb"; rate a linear combination of the
+        coordinates' rates such as "theta2 - theta1": `regressor.friction_setting`).
     given: values of the other parameters (default the model's), and the values the
         unidentifiable and nonlinear unknowns start from.
     window: Savitzky-Golay window in samples (odd; 0: no smoothing; None: see above).
@@ -159,8 +162,8 @@ def identify(
     cat = catalogue(full)
     names = list(cat.defaults)
     unknown = _unknown(base_model, unknown) + [
-        p for c, kind in setting.items() for p, k in zip(friction_names(c), ("viscous", "coulomb"))
-        if k in kind
+        p for c, (kind, _) in setting.items()
+        for p, k in zip(friction_names(c), ("viscous", "coulomb")) if k in kind
     ]  # fmt: skip
     values = dict(cat.defaults) | _given(full, given)
     rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import re
 from pathlib import Path
 from types import ModuleType
 
@@ -102,41 +103,88 @@ def catalogue(model: Model) -> Catalogue:
     return _catalogues[key]
 
 
-def friction_names(coordinate: str) -> tuple[str, str]:
-    """The parameter names of the viscous and Coulomb coefficients on `coordinate`."""
-    return f"viscous_{coordinate}", f"coulomb_{coordinate}"
+def friction_names(joint: str) -> tuple[str, str]:
+    """The parameter names of the viscous and Coulomb coefficients on `joint` (a coordinate,
+    or a joint named in `friction`)."""
+    return f"viscous_{joint}", f"coulomb_{joint}"
 
 
-def friction_setting(model: Model, friction) -> dict[str, str]:
-    """`friction` (None, "all", or {coordinate: kind}) as {coordinate: kind}, checked."""
+_TERM = re.compile(r"([+-]?)(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)?\*?([A-Za-z_]\w*)")
+
+
+def _rate(model: Model, joint: str, text) -> tuple:
+    """A joint's rate, 'theta2 - theta1' (a linear combination of the coordinates' rates
+    with constant coefficients, e.g. '2*x - 0.5*phi'), as ((coordinate, coefficient), ...)."""
+    coords = catalogue(model).coordinates
+    compact_ = "".join(str(text).split())
+    terms = list(_TERM.finditer(compact_))
+    whole = "".join(m.group(0) for m in terms) == compact_ and compact_
+    if not whole or (terms and terms[0].start() != 0):
+        raise ValueError(
+            f"friction[{joint!r}]: the rate {text!r} is not a linear combination of the "
+            f"coordinates ({', '.join(coords)}), e.g. 'theta2 - theta1'."
+        )
+    out: dict[str, float] = {}
+    for m in terms:
+        sign, number, name = m.groups()
+        if name not in coords:
+            hint = did_you_mean(name, coords)
+            raise ValueError(f"friction[{joint!r}]: {model.name} has no coordinate {name!r}."
+                             f"{hint} Known: {', '.join(coords)}.")  # fmt: skip
+        out[name] = out.get(name, 0.0) + (-1.0 if sign == "-" else 1.0) * float(number or 1)
+    if not any(out.values()):
+        raise ValueError(f"friction[{joint!r}]: the rate {text!r} is zero.")
+    return tuple((c, out[c]) for c in coords if out.get(c))
+
+
+def friction_setting(model: Model, friction) -> dict[str, tuple]:
+    """`friction` as {joint: (kind, ((coordinate, coefficient), ...))}, checked. It is None,
+    "all" (every coordinate), or a mapping whose entries are `coordinate: kind` (friction on
+    that coordinate's rate) or `joint: (rate, kind)` (friction on a joint whose rate is a
+    linear combination of the coordinates' rates, e.g. the elbow's relative rate
+    'theta2 - theta1' where the coordinates are absolute angles)."""
     if friction is None:
         return {}
     coords = catalogue(model).coordinates
     if friction == "all":
-        return {c: "viscous+coulomb" for c in coords}
+        return {c: ("viscous+coulomb", ((c, 1.0),)) for c in coords}
     if not isinstance(friction, dict):
-        raise TypeError(f"friction must be None, 'all' or {{coordinate: kind}}, got {friction!r}.")
+        raise TypeError(
+            f"friction must be None, 'all' or {{coordinate: kind}} / {{joint: (rate, kind)}}, "
+            f"got {friction!r}."
+        )
     out = {}
-    for name, kind in friction.items():
-        if name not in coords:
-            hint = did_you_mean(str(name), coords)
-            raise ValueError(
-                f"friction: {model.name} has no coordinate {name!r}.{hint} "
-                f"Known: {', '.join(coords)}."
-            )
+    for name, value in friction.items():
+        if isinstance(value, tuple) and len(value) == 2 and value[0] in FRICTION_KINDS:
+            kind, rate = value  # already in this form
+        elif isinstance(value, (tuple, list)) and len(value) == 2:
+            if str(name) in coords:
+                raise ValueError(f"friction[{name!r}]: a joint with its own rate needs a name "
+                                 "that is not a coordinate's.")  # fmt: skip
+            kind, rate = value[1], _rate(model, str(name), value[0])
+        else:
+            if name not in coords:
+                hint = did_you_mean(str(name), coords)
+                raise ValueError(
+                    f"friction: {model.name} has no coordinate {name!r}.{hint} Known: "
+                    f"{', '.join(coords)} (a joint of your own: {{name: (rate, kind)}})."
+                )
+            kind, rate = value, ((name, 1.0),)
         if kind not in FRICTION_KINDS:
             raise ValueError(
                 f"friction[{name!r}] must be one of {', '.join(FRICTION_KINDS)}, got {kind!r}."
             )
-        out[name] = kind
+        out[str(name)] = (kind, tuple(rate))
     return out
 
 
 def with_friction(model, friction, width: float = COULOMB_WIDTH) -> Model:
-    """`model` with friction on the coordinates of `friction` ({coordinate: kind}, kind
-    'viscous', 'coulomb' or 'viscous+coulomb'; or 'all'): the generalised force
-    -b q' - c tanh(q'/width) added to each, with parameters `viscous_<q>` (b) and
-    `coulomb_<q>` (c), default 0. A plant with friction is this model compiled with values."""
+    """`model` with friction on the joints of `friction` (see `friction_setting`; kind
+    'viscous', 'coulomb' or 'viscous+coulomb'): a joint of rate r = sum_i c_i q_i' gets
+    the torque tau = -b r - c tanh(r/width), which does the generalised forces c_i tau on
+    its coordinates (virtual work), with parameters `viscous_<joint>` (b) and
+    `coulomb_<joint>` (c), default 0; still linear in b and c. A plant with friction is
+    this model compiled with values."""
     model = as_model(model)
     setting = friction_setting(model, friction)
     if not setting:
@@ -154,22 +202,24 @@ def _add_friction(model: Model, setting: dict, width: float) -> Model:
     spec = model.spec
     forces = dict(spec.forces)
     params = dict(spec.parameters)
-    for q in spec.coordinates:
-        kind = setting.get(str(q.name))
-        if kind is None:
-            continue
-        rate = q.diff(t)
-        b_name, c_name = friction_names(str(q.name))
-        extra = sp.S.Zero
+    by_name = {str(q.name): q for q in spec.coordinates}
+    for joint, (kind, rate_terms) in setting.items():
+        rate = sp.Add(*[sp.Float(c) * by_name[q].diff(t) if c != 1 else by_name[q].diff(t)
+                        for q, c in rate_terms])  # fmt: skip
+        b_name, c_name = friction_names(joint)
+        tau = sp.S.Zero
         if "viscous" in kind:
             b = sp.Symbol(b_name)
-            params[b] = Param(0.0, "force*s/rate", f"viscous friction on {q.name}", False)
-            extra -= b * rate
+            params[b] = Param(0.0, "force*s/rate", f"viscous friction on {joint}", False)
+            tau -= b * rate
         if "coulomb" in kind:
             c = sp.Symbol(c_name)
-            params[c] = Param(0.0, "force", f"Coulomb friction on {q.name}", False)
-            extra -= c * sp.tanh(rate / sp.Float(width))
-        forces[q] = forces.get(q, sp.S.Zero) + extra
+            params[c] = Param(0.0, "force", f"Coulomb friction on {joint}", False)
+            tau -= c * sp.tanh(rate / sp.Float(width))
+        for q, coef in rate_terms:
+            coordinate = by_name[q]
+            share = tau if coef == 1 else sp.Float(coef) * tau
+            forces[coordinate] = forces.get(coordinate, sp.S.Zero) + share
     name = f"{spec.name}_friction"
     return Model(dataclasses.replace(spec, name=name, forces=forces, parameters=params))
 

@@ -204,3 +204,12 @@ def test_plant_of_another_env_is_refused_before_any_work(tmp_path, capsys):
     with pytest.raises(SystemExit):
         lqr.main([ARM, "--plant", str(plant)])
     assert "identified on Lagrange/Bead-v1" in capsys.readouterr().err
+
+
+def test_friction_option_takes_coordinates_and_joints():
+    assert identify._friction("theta1=viscous,elbow:theta2-theta1=viscous+coulomb") == {
+        "theta1": "viscous", "elbow": ("theta2-theta1", "viscous+coulomb")}  # fmt: skip
+    from agents.common import UserError
+
+    with pytest.raises(UserError, match="JOINT:RATE=KIND"):
+        identify._friction("elbow")
