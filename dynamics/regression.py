@@ -286,9 +286,10 @@ def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s, w: int = 0):
     the measured rates: noise n of std sigma_i in rate i puts J_i n into the row
     (J_i = dP/dqd_i, and dp0/dqd_i in the target), so least squares on noisy rows
     converges to (A^T A + E[N^T N])^-1 (A^T y + E[N^T e]), shrunk towards zero (errors in
-    variables). The fit subtracts these expectations. sigma_i is estimated from the record
-    (the rate's rms departure from its Savitzky-Golay smoothing, over sqrt(1 - c0), c0 the
-    filter's centre weight)."""
+    variables). The fit subtracts these expectations. The positions' noise moves the
+    momenta through M(q) (with the arm moving at 10 rad/s, 1e-3 rad of it did as much as
+    1e-2 rad/s of rate noise, and biased Ibar1 by 4 standard errors): its Jacobian, by
+    central differences, enters the same way. The stds are `Record.sigma_q`, `sigma_qd`."""
     n = reg.n_q
     sigma = rate_sigma(rec, w)
     Xe, te, ue = X[ends], t[ends], u[ends]
@@ -304,6 +305,19 @@ def rate_noise(reg, rec: Record, t, X, u, p, ends, span_s, w: int = 0):
         for sl in both:
             CA += sigma[i] ** 2 * np.einsum("bek,bel->ekl", J[sl], J[sl])
             cy += sigma[i] ** 2 * np.einsum("bek,be->ek", J[sl], j0[sl])
+    sigma_q = rec.sigma_q if rec.sigma_q is not None else np.zeros(n)
+    for i in range(n):  # position noise moves the momenta too (M(q) q'): by its Jacobian
+        if not sigma_q[i] > 0:
+            continue
+        step = 1e-6 * max(1.0, float(np.abs(Xe[:, i]).max()))
+        Xp, Xm = Xe.copy(), Xe.copy()
+        Xp[:, i] += step
+        Xm[:, i] -= step
+        (Pp, pp0, _, _), (Pm, pm0, _, _) = reg.momentum(te, Xp, ue, p), reg.momentum(te, Xm, ue, p)
+        J, j0 = (Pp - Pm) / (2 * step * span_s), -(pp0 - pm0) / (2 * step * span_s)
+        for sl in both:
+            CA += sigma_q[i] ** 2 * np.einsum("bek,bel->ekl", J[sl], J[sl])
+            cy += sigma_q[i] ** 2 * np.einsum("bek,be->ek", J[sl], j0[sl])
     return CA, cy
 
 
