@@ -63,23 +63,37 @@ def test_bad_arguments_end_in_one_line(argv, message, capsys, tmp_path, monkeypa
     assert message in err and "Traceback" not in err
 
 
-@pytest.mark.slow  # records, fits and runs 100 episodes twice: ~20 s
+@pytest.mark.slow  # records, fits, scores two designs on the plant and runs the snippet: ~40 s
 def test_the_worked_example_runs_as_written(tmp_path, monkeypatch, capsys):
+    """The page's files written, its commands run as written (agents.identify and
+    agents.lqr; the others' arguments parsed), its Python run: the nominal design fails on
+    the machine, the identified one succeeds, from the command line and from Python."""
     page = Path(__file__).resolve().parents[2] / "docs" / "identification.md"
     text = page.read_text(encoding="utf-8")
     monkeypatch.chdir(tmp_path)
+    for name, body in re.findall(r"```yaml\n# (\S+)\n(.*?)```", text, re.S):
+        (tmp_path / name).write_text(body)
+    scores = []
     for block in re.findall(r"```bash\n(.*?)```", text, re.S):
         for command in block.replace("\\\n", " ").splitlines():
             words = command.split("#")[0].split()
             if not words:
                 continue
             assert words[:3] == ["python", "-m", words[2]] and words[2].startswith("agents.")
-            if words[2] == "agents.identify":  # record and fit, as written
-                assert identify.main(words[3:]) == 0
+            program = importlib.import_module(words[2])
+            if words[2] in ("agents.identify", "agents.lqr"):  # run as written
+                capsys.readouterr()
+                assert program.main(words[3:]) == 0
+                found = re.search(r"this design\): success \d+/100 \((\d+)%\)",
+                                  capsys.readouterr().out)  # fmt: skip
+                if found:
+                    scores.append(int(found.group(1)))
             else:  # the other programs that take the result: their arguments as written
-                importlib.import_module(words[2]).build_parser().parse_args(words[3:])
+                program.build_parser().parse_args(words[3:])
+    assert len(scores) == 2 and scores[0] < 50 and scores[1] >= 95, scores
+    namespace: dict = {}  # the page's Python blocks run in order, as one session
     for block in re.findall(r"```python\n(.*?)```", text, re.S):
-        exec(compile(block, str(page), "exec"), {})
+        exec(compile(block, str(page), "exec"), namespace)
     out = capsys.readouterr().out
     nominal = float(re.search(r"^nominal ([\d.]+)$", out, re.M).group(1))
     found = float(re.search(r"^identified ([\d.]+)$", out, re.M).group(1))
