@@ -171,10 +171,11 @@ def identify(
     ]  # fmt: skip
     values = dict(cat.defaults) | _given(full, given)
     rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)
-    regression.check_time_base(full.compile(**values), rec)
     reg = Regressor(full, unknown)
     lin = list(reg.linear)
     p = np.array([values[k] for k in names])
+    if lin:  # (the check reads the linear form)
+        regression.check_time_base(reg, rec, p, np.array([values[k] for k in lin]))
     held: dict[str, str] = {}  # unknowns the record does not determine -> why
     if lin:
         rows = regression.build_rows(reg, rec, p, window, span)

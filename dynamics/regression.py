@@ -427,23 +427,25 @@ parameters off by the factors identification corrects (a few) stays far inside i
 base off by a thousand (milliseconds) far outside."""
 
 
-def check_time_base(system, rec: Record) -> None:
-    """ValueError when the record's accelerations and the model's (`system`, at the
-    record's states and inputs) differ by more than TIME_SCALE: time not in seconds, or
-    values not in the model's units."""
+def check_time_base(reg: Regressor, rec: Record, p, theta) -> None:
+    """ValueError when the record's accelerations and the model's differ by more than
+    TIME_SCALE: the rms of N^T M q'' (the record's accelerations, projected off the
+    constraint forces) against that of N^T F (the model's forces at the record's states
+    and inputs, `p` and `theta` its parameters), equal for a record of the model. Off by
+    a million: time not in seconds, or values not in the model's units."""
     h = rec.h
     w = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
     w = min(w, (len(rec.t) - 2) // 2 * 2 + 1)  # a record shorter than the window: all of it
     qd = rec.qd if rec.qd is not None else savgol_filter(rec.q, w, POLYORDER, deriv=1,
                                                          delta=h, axis=0)  # fmt: skip
-    measured = savgol_filter(qd, w, POLYORDER, deriv=1, delta=h, axis=0)
-    x = np.hstack([rec.q, qd])
-    try:
-        with np.errstate(all="ignore"):
-            model = system.state_derivative(rec.t, x, rec.u)[:, rec.q.shape[1]:]
-    except ValueError:
-        return  # states the model cannot take: the fit says so in its own words
-    a, b = np.sqrt(np.mean(measured**2)), np.sqrt(np.mean(model**2))
+    qdd = savgol_filter(qd, w, POLYORDER, deriv=1, delta=h, axis=0)
+    X = np.hstack([rec.q, qd])
+    with np.errstate(all="ignore"):
+        moved = acceleration_rows(reg, rec.t, X, qdd, rec.u, p, 1)
+        still = acceleration_rows(reg, rec.t, X, np.zeros_like(qdd), rec.u, p, 1)
+        inertia = (moved.A - still.A) @ theta - (moved.y - still.y)  # N^T M q''
+        force = still.y - still.A @ theta  # N^T F
+        a, b = np.sqrt(np.mean(inertia**2)), np.sqrt(np.mean(force**2))
     if not (np.isfinite(a) and np.isfinite(b)) or a == 0 or b == 0:
         return
     ratio = a / b
