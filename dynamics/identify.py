@@ -182,18 +182,8 @@ def identify(
         _check_rows(rows, rec)
         W = regression.random_regressor(reg, rec, p, seed)
         b = estimate.base(W, estimate.preference(lin, cat.units))
-        doubt: dict[str, float] = {}  # their variance about the given value, as seen
         spread = _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed)
-        while True:
-            fit = _fit(rows, lin, b, values, full, doubt)
-            for k, s_k in spread.items():  # the sandwich misses the noise in the regressor
-                if k in fit.std:
-                    fit.std[k] = max(fit.std[k], s_k)
-            worst = _undetermined(fit, held, values)
-            if worst is None:
-                break
-            name, held[name] = worst
-            doubt[name] = fit.std[name] ** 2 + (fit.theta[name] - values[name]) ** 2
+        fit = _determined_fit(rows, lin, b, values, full, spread, held)
         _refuse_unphysical(full, fit, values)
         fitted = _fitted(rows, rec, lin, b, fit)
     else:  # only unknowns that enter nonlinearly: simulation error alone
@@ -205,27 +195,55 @@ def identify(
         refine = bool(reg.nonlinear)
     if refine:
         names_ = list(reg.nonlinear) + [lin[i] for i in b.independent if lin[i] not in held]
-        fit = _refine(full, rec, fit, names_)
-        for name in names_:  # what simulation error leaves undetermined is kept as given
-            worst = _undetermined(Fit(fit.theta, {name: fit.std[name]}, *[None] * 5), held,
-                                  values)  # fmt: skip
-            if worst is not None and name not in fit.weak:
-                held[name] = worst[1]
-                fit.theta[name] = values[name]
-        _refuse_unphysical(full, fit, values)
+        fit = _refined(full, rec, fit, names_, values, held)
     out = _result(base_model, full, setting, unknown, reg, b, fit, held)
     out.fitted = fitted
     out.noise = rec.noise_note
-    distortion = regression.rate_distortion(rec, window)
-    if distortion > regression.DISTORTION:
-        out.warnings.append(
-            f"positions only at {1 / rec.h:.3g} Hz: the rates derived from them change by "
-            f"{distortion:.0%} between filter windows, so the motion is too fast for this "
-            "sampling and the estimates are likely shrunk; record rates (qd) or sample faster"
-        )
+    out.warnings += _record_warnings(rec, window)
     for text in out.warnings:
         warnings.warn(text, stacklevel=2)
     return out
+
+
+def _determined_fit(rows, lin, b, values, full, spread: dict, held: dict) -> Fit:
+    """The linear fit with every unknown the record determines worse than REL_STD held
+    at its given value (added to `held` with why), worst first, each one's doubt carried
+    into the rest; standard errors at least `spread` (`_noise_spread`)."""
+    doubt: dict[str, float] = {}  # the held ones' variance about the given value, as seen
+    while True:
+        fit = _fit(rows, lin, b, values, full, doubt)
+        for k, s_k in spread.items():  # the sandwich misses the noise in the regressor
+            if k in fit.std:
+                fit.std[k] = max(fit.std[k], s_k)
+        worst = _undetermined(fit, held, values)
+        if worst is None:
+            return fit
+        name, held[name] = worst
+        doubt[name] = fit.std[name] ** 2 + (fit.theta[name] - values[name]) ** 2
+
+
+def _refined(full, rec, fit: Fit, names: list[str], values: dict, held: dict) -> Fit:
+    """`_refine`'s fit, with what simulation error leaves undetermined kept as given."""
+    fit = _refine(full, rec, fit, names)
+    for name in names:
+        worst = _undetermined(Fit(fit.theta, {name: fit.std[name]}, *[None] * 5), held, values)
+        if worst is not None and name not in fit.weak:
+            held[name] = worst[1]
+            fit.theta[name] = values[name]
+    _refuse_unphysical(full, fit, values)
+    return fit
+
+
+def _record_warnings(rec: regression.Record, window) -> list[str]:
+    """What about the record makes its estimates doubtful."""
+    distortion = regression.rate_distortion(rec, window)
+    if distortion <= regression.DISTORTION:
+        return []
+    return [
+        f"positions only at {1 / rec.h:.3g} Hz: the rates derived from them change by "
+        f"{distortion:.0%} between filter windows, so the motion is too fast for this "
+        "sampling and the estimates are likely shrunk; record rates (qd) or sample faster"
+    ]
 
 
 def _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed) -> dict:
