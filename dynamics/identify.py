@@ -182,7 +182,8 @@ def identify(
         _check_rows(rows, rec)
         W = regression.random_regressor(reg, rec, p, seed)
         b = estimate.base(W, estimate.preference(lin, cat.units))
-        spread = _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed)
+        spread = _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed,
+                               rows.noise)  # fmt: skip
         fit = _determined_fit(rows, lin, b, values, full, spread, held)
         _refuse_unphysical(full, fit, values)
         fitted = _fitted(rows, rec, lin, b, fit)
@@ -246,7 +247,7 @@ def _record_warnings(rec: regression.Record, window) -> list[str]:
     ]
 
 
-def _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed) -> dict:
+def _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed, moments) -> dict:
     """{unknown: std} of the estimates over NOISE_DRAWS copies of the record with fresh
     sensor noise of its own std added (a parametric bootstrap): the noise in the
     regressor's rates and positions, which the sandwich errors cannot see (on the arm they
@@ -265,7 +266,8 @@ def _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed) -> dict
         qd = None if rec.qd is None else rec.qd + sqd * rng.standard_normal(rec.qd.shape)
         copy = dataclasses.replace(rec, q=q, qd=qd)
         try:
-            fit = _fit(regression.build_rows(reg, copy, p, window, span), lin, b, values, full)
+            rows = regression.build_rows(reg, copy, p, window, span, moments)
+            fit = _fit(rows, lin, b, values, full)
         except (ValueError, np.linalg.LinAlgError):
             continue
         draws.append([fit.theta[lin[i]] for i in b.independent])

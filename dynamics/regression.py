@@ -245,7 +245,9 @@ def midpoints(q, qd, h, hermite: bool):
     return np.hstack([qm, qdm])
 
 
-def build_rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
+def build_rows(reg: Regressor, rec: Record, p, window, span, moments=None) -> Rows:
+    """The rows of `rec`; `moments`: the noise's second moments to use instead of
+    computing them (a refit of the same record with other noise draws)."""
     constrained = reg._m.N_C > 0
     q, qd, u, w, noisy = signals(rec, window, constrained)
     h, t = rec.h, rec.t
@@ -256,7 +258,8 @@ def build_rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
         qdd = (qd[1:] - qd[:-1]) / h
         rows = acceleration_rows(reg, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
         if noisy and rec.qd is not None:
-            rows.noise = acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
+            rows.noise = moments or acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd,
+                                                       u[:-1], p, w)  # fmt: skip
         return rows
     L = span or max(1, int(round(SPAN / h)))
     n_win = (len(t) - 1) // L
@@ -275,7 +278,7 @@ def build_rows(reg: Regressor, rec: Record, p, window, span) -> Rows:
     eq = np.tile(np.arange(n), n_win)
     time = np.repeat(np.arange(n_win), n)
     compensate = noisy and (w == 0 or rec.qd is None)
-    noise = rate_noise(reg, rec, t, X, u, p, ends, L * h, w) if compensate else None
+    noise = (moments or rate_noise(reg, rec, t, X, u, p, ends, L * h, w)) if compensate else None
     return Rows(A.reshape(-1, nk), y.reshape(-1), eq, time, lag, None, n, noise)
 
 
