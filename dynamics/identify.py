@@ -287,6 +287,10 @@ def _check_rows(rows: regression.Rows, rec: regression.Record) -> None:
     if not np.abs(rows.A).any():
         raise ValueError("data: the record does not excite the unknowns (their equations' "
                          "columns are all zero); record the system under an exciting input.")
+    if not np.abs(rows.y).max() > 1e-12 * np.abs(rows.A).max():
+        raise ValueError("data: nothing in the record but the unknowns does work (no input, "
+                         "no known force), so it tells their ratios, not their scale; record "
+                         "under an input, or fix one of them (given=, fewer unknown=).")
 
 
 def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
@@ -419,7 +423,7 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
     beta, _ = estimate.scaled_lstsq(*first[:2])
     r = y - A @ beta
     sigma = np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
-    w_eq = 1.0 / np.maximum(sigma, 1e-12 * max(sigma.max(), 1e-300))
+    w_eq = 1.0 / np.maximum(sigma, 1e-12 * sigma.max()) if sigma.max() > 0 else np.ones_like(sigma)
     Aw_, yw_ = A * w_eq[rows.equation][:, None], y * w_eq[rows.equation]
     weighted = estimate.compensated(Aw_, yw_, *noise(w_eq)) if compensate else (
         Aw_, yw_, Aw_.T @ Aw_)  # fmt: skip

@@ -137,6 +137,7 @@ BAD = [  # (what, record change or None, keyword arguments, the message's words)
     ("milliseconds as seconds", ("t", lambda a: a * 1000), {}, "milliseconds given as seconds"),
     ("seconds as milliseconds", ("t", lambda a: a / 1000), {}, "times the model's"),
     ("no motion", None, {"data": "still"}, "does not move"),
+    ("no input", ("u", lambda a: a * 0), {}, "tells their ratios, not their scale"),
     ("a negative mass given", None, {"given": {"m1": -1.0}}, "given:"),
     ("a NaN given", None, {"given": {"m1": float("nan")}}, "given: m1 = nan"),
     ("text given", None, {"given": {"m1": "heavy"}}, "given: m1 = 'heavy'"),
