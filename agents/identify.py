@@ -115,8 +115,15 @@ def load_record(path: Path, env_id: str | None = None) -> dict:
             "numpy.savez makes)")  # fmt: skip
     try:
         loaded = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise UserError(f"--data: {path} is not {what}: {str(exc).splitlines()[0]}") from None
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile):
+        head = path.read_bytes()[:16]
+        if head.startswith(b"PK"):
+            how = "a damaged or truncated zip archive"
+        elif head and all(32 <= c < 127 or c in b"\t\r\n" for c in head):
+            how = f"text starting {head.decode()!r}"
+        else:
+            how = f"not a zip archive (it starts {head!r})"
+        raise UserError(f"--data: {path} is not {what}: it is {how}.") from None
     if not isinstance(loaded, np.lib.npyio.NpzFile):
         raise UserError(f"--data: {path} is a single array (.npy); a record is {what}.")
     try:

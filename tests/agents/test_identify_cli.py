@@ -136,7 +136,8 @@ CLI_BAD = [  # argv with {placeholders} filled from _bad_files and the record, t
     ("{ARM} --record arm.txt", "a record is an .npz file"),
     ("{ARM} --data {record} --out {occupied}", "--out {occupied}: a file is there"),
     ("{ARM} --data {text} --out o", "is not an .npz record"),
-    ("{ARM} --data {truncated} --out o", "is not an .npz record"),
+    ("{ARM} --data {text} --out o", "it is text starting 't,q,u"),
+    ("{ARM} --data {truncated} --out o", "a damaged or truncated zip archive"),
     ("{ARM} --data {single} --out o", "is a single array (.npy)"),
     ("{ARM} --data {other} --out o", "was recorded on Lagrange/Bead-v1, not " + ARM),
     ("{ARM} --data {adir} --out o", "no record at"),
@@ -155,6 +156,7 @@ def test_bad_command_lines_end_in_one_line_before_any_work(argv, words, arm_reco
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert words.format(**names) in err and "Traceback" not in err, err
+    assert "allow_pickle" not in err and "unsafe" not in err  # never invite unsafe loading
     assert not (tmp_path / "o").exists() and not (tmp_path / "x.npz").exists()
 
 
