@@ -99,8 +99,8 @@ def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
     and the 95 % intervals of all parameters the record determines, friction included,
     cover the truth in at least 85 % of the cases (the shoulder's viscous coefficient,
     which this record tells from its Coulomb one only to about 30 %, is kept at 0 and listed
-    in some draws, its doubt carried into the Coulomb estimate's interval) (the sandwich errors are conservative here: measured 100 %;
-    85 % leaves room for chance, 2.3 standard deviations of a binomial at 95 %)."""
+    in some draws, its doubt carried into the Coulomb estimate's interval); 85 % leaves
+    room for chance, 2.3 standard deviations of a binomial at 95 %."""
     friction = {"viscous_theta1": 0.1, "coulomb_theta1": 0.3,
                 "viscous_theta2": 0.05, "coulomb_theta2": 0.2}  # fmt: skip
     plant = with_friction(arm, "all").compile(**ARM, **friction)
