@@ -469,3 +469,49 @@ def test_one_table_of_algorithms_names_what_agents_train():
     assert INTEGRATORS == tuple(METHODS)
     with pytest.raises(DeclarationError, match="algo"):
         dataclasses.replace(BASE, algo="a2c")
+
+
+# ---- 7. no code from a declaration: text in any field sympy would parse is refused ---------
+def _spec_with(planted, **fields):
+    """A one-coordinate spec whose `fields` carry text that, were it evaluated, would write
+    the file `planted`."""
+    q = me.dynamicsymbols("q")
+    m, inertia = sp.symbols("m I")
+    params = {m: Param(1.0, "kg"), inertia: Param(1.0, "kg m^2")}
+    code = f"__import__('pathlib').Path({str(planted)!r}).write_text('ran') and I"
+    base = dict(kinetic=m * q.diff() ** 2 / 2, potential=0 * q, parameters=params)
+    base.update({k: v(code, q) for k, v in fields.items()})
+    return ModelSpec("planted", (q,), **base)
+
+
+TEXT_FIELDS = {
+    "a body's principal moment": {"bodies": lambda c, q: {"b": (c, "I", "I")}},
+    "a body's tensor entry": {"bodies": lambda c, q: {"b": ((c, 0, 0), (0, 1, 0), (0, 0, 1))}},
+    "the kinetic energy": {"kinetic": lambda c, q: c},
+    "a force": {"forces": lambda c, q: {q: c}},
+    "a constraint": {"constraints": lambda c, q: (c,)},
+    "an output": {"outputs": lambda c, q: {"y": c}},
+    "a condition": {"conditions": lambda c, q: {"I > 0": c}},
+    "an input": {"inputs": lambda c, q: (c,)},
+    "a coordinate": {"kinetic": lambda c, q: q.diff() ** 2},  # (below: coordinates as text)
+}
+
+
+@pytest.mark.parametrize("case", TEXT_FIELDS)
+def test_text_in_a_declaration_is_refused_before_sympy_sees_it(case, tmp_path):
+    planted = tmp_path / "planted"
+    fields = TEXT_FIELDS[case]
+    if case == "a coordinate":
+        code = f"__import__('pathlib').Path({str(planted)!r}).write_text('ran')"
+        with pytest.raises(TypeError, match="coordinates is text"):
+            ModelSpec("planted", (code,), 0, 0, {})
+    else:
+        with pytest.raises(TypeError, match="is text") as info:
+            _spec_with(planted, **fields)
+        assert "parse_expression" in str(info.value)
+    assert not planted.exists()  # the planted side effect never ran
+
+
+def test_an_energy_that_is_no_expression_is_named():
+    with pytest.raises(TypeError, match="kinetic must be a sympy expression.*got list"):
+        _spec_with("unused", kinetic=lambda c, q: [q.diff() ** 2])
