@@ -41,9 +41,9 @@ from .common import (
     check_env_id,
     env_slug,
     fail,
-    non_negative_int,
     positive_int,
     register_envs,
+    seed_int,
     set_torch_threads,
     task_of,
     write_atomic,
@@ -311,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes per agent"
     )
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="first episode's seed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="first episode's seed")
     parser.add_argument(
         "--timesteps",
         type=positive_int,

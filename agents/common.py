@@ -142,6 +142,21 @@ def non_negative_int(text: str) -> int:
     return value
 
 
+SEED_LIMIT = 2**32
+"""Seeds are below this: stable-baselines3 seeds numpy's global generator, which takes no
+larger seed; every command's --seed keeps to it, so one seed means the same in each."""
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer from 0 to SEED_LIMIT - 1."""
+    value = non_negative_int(text)
+    if value >= SEED_LIMIT:
+        raise argparse.ArgumentTypeError(
+            f"expected a seed from 0 to 2**32 - 1 (numpy's limit), got {value:.3g}"
+        )
+    return value
+
+
 def env_slug(env_id: str) -> str:
     """A file-system name for an environment id ('Lagrange/Acrobot-v2' -> 'Lagrange-Acrobot-v2')."""
     return env_id.replace("/", "-").replace(":", "-")

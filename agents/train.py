@@ -33,8 +33,8 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
-    non_negative_int,
     positive_int,
+    seed_int,
     set_torch_threads,
     task_of,
     trained_line,
@@ -57,6 +57,7 @@ from .learning.rundir import (
     check_resume_randomize,
     default_run_dir,
     exclusive,
+    latest_checkpoint,
     prepare_run_dir,
     read_config,
     remove_stale_temporaries,
@@ -136,6 +137,8 @@ def train(
     set_torch_threads(threads)
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
     env_options = _randomization(run_dir, env_id, hp, randomize, resume)
+    if resume:
+        check_resume_defines(run_dir, seed=seed, n_envs=n_envs, hyperparams=hp)
     with exclusive(run_dir):
         remove_stale_temporaries(run_dir)
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite)
@@ -196,6 +199,35 @@ def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     return randomization.env_kwargs(env_id, hp.get("randomize"))
+
+
+def check_resume_defines(run_dir: Path, **given) -> None:
+    """UserError when an option that defines the run (seed, n_envs, the resolved
+    hyperparameters, whichever file gave them) differs from what the run's config.yml
+    records: a resumed run goes on with what it began with, and its record says so (the
+    step count may grow: that is what resuming to a larger --timesteps is for)."""
+    if latest_checkpoint(run_dir / "checkpoints") is None:
+        return  # nothing to resume: a fresh run writes its own record
+    config = read_config(run_dir)
+    then, now = _flat(config, given), _flat(given, given)
+    differ = [
+        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} given"
+        for k in sorted((set(then) | set(now)) - {"hyperparams[randomize]"})  # its own check
+        if then.get(k) != now.get(k)
+    ]
+    if differ:
+        raise UserError(
+            f"{run_dir} holds a run begun with other settings ({'; '.join(differ)}); --resume "
+            "continues a run with its own (give the run's --seed, --n-envs and --hyperparams), "
+            "or start another run (--run-dir) with the new ones."
+        )
+
+
+def _flat(config: dict, keys) -> dict:
+    """`config`'s `keys` as config.yml stores them, the hyperparameters one by one."""
+    flat = yaml.safe_load(yaml.safe_dump({k: config.get(k) for k in keys}))
+    flat.update((f"hyperparams[{k}]", v) for k, v in (flat.pop("hyperparams") or {}).items())
+    return flat
 
 
 def _write_config(run_dir: Path, config: dict, env_id: str, env_options: dict) -> None:
@@ -291,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
         "met it, else the best evaluated (agents.learning.budget). Not repeatable: use "
         "--timesteps for that",
     )
-    parser.add_argument("--seed", type=non_negative_int, default=0)
+    parser.add_argument("--seed", type=seed_int, default=0)
     parser.add_argument("--n-envs", type=positive_int, help="parallel envs (default: YAML n_envs)")
     parser.add_argument(
         "--hyperparams",

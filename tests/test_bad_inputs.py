@@ -515,3 +515,64 @@ def test_text_in_a_declaration_is_refused_before_sympy_sees_it(case, tmp_path):
 def test_an_energy_that_is_no_expression_is_named():
     with pytest.raises(TypeError, match="kinetic must be a sympy expression.*got list"):
         _spec_with("unused", kinetic=lambda c, q: [q.diff() ** 2])
+
+
+# ---- 8. a run's record is not rewritten by a resume with other settings ---------------------
+BEAD = "Lagrange/BeadOnRod-v1"
+RESUMES = {  # (train's arguments on resuming, the words of the refusal)
+    "another seed": ({"seed": 3}, ["seed: 0 in the run, 3 given"]),
+    "another n_envs": ({"n_envs": 2}, ["n_envs: 8 in the run, 2 given"]),
+    "another hyperparameters file": (
+        {"hyperparams": "gamma.yml"},
+        ["hyperparams[gamma]", "0.5 given", "--hyperparams"],
+    ),
+}
+
+
+def _recorded_run(run_dir):
+    """A run directory as agents.train leaves it after a checkpoint (seed 0, 8 envs, the
+    packaged hyperparameters); the checkpoint's content is never read by the refusal."""
+    import yaml
+
+    from agents.learning.hparams import load_hyperparams
+
+    config = {"env_id": BEAD, "algo": "ppo", "seed": 0, "n_timesteps": 512, "n_envs": 8}
+    config["hyperparams"] = load_hyperparams("ppo", BEAD)
+    (run_dir / "checkpoints").mkdir(parents=True)
+    (run_dir / "checkpoints" / "rl_model_256_steps.zip").write_bytes(b"")
+    (run_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    return (run_dir / "config.yml").read_text()
+
+
+@pytest.mark.parametrize("case", RESUMES)
+def test_a_resume_with_another_defining_option_is_refused_unwritten(case, tmp_path):
+    from agents.train import train
+
+    before = _recorded_run(tmp_path / "run")
+    (tmp_path / "gamma.yml").write_text(f"{BEAD}:\n  gamma: 0.5\n")
+    given, words = RESUMES[case]
+    if "hyperparams" in given:
+        given = {"hyperparams": tmp_path / given["hyperparams"]}
+    with pytest.raises(UserError) as info:
+        train(BEAD, timesteps=512, run_dir=tmp_path / "run", resume=True, **given)
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert (tmp_path / "run" / "config.yml").read_text() == before
+
+
+def test_a_resume_with_the_run_s_own_settings_passes_the_check(tmp_path):
+    from agents.learning.hparams import load_hyperparams
+    from agents.train import check_resume_defines
+
+    _recorded_run(tmp_path)
+    hp = load_hyperparams("ppo", BEAD)
+    check_resume_defines(tmp_path, seed=0, n_envs=8, hyperparams=hp)
+
+
+@pytest.mark.parametrize("command", ["train", "check", "evaluate", "lqr", "plan"])
+def test_every_seed_keeps_to_numpy_s_limit(command, capsys):
+    module = importlib.import_module(f"agents.{command}")
+    with pytest.raises(SystemExit) as info:
+        module.main([BEAD, "--seed", str(2**32)])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "seed from 0 to 2**32 - 1" in err and "Traceback" not in err
