@@ -361,6 +361,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
         env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
+        twice = sorted({e for e in env_ids if env_ids.count(e) > 1})
+        if twice:
+            raise UserError(f"{', '.join(twice)} given twice; name each env once.")
         randomize = randomization.parse_option(args.randomize)
         values = params.load_for(args.params, env_ids or register_envs())
         if args.hyperparams is not None:

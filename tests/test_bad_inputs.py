@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import importlib.util
 import types
 import warnings
 
@@ -576,3 +577,92 @@ def test_every_seed_keeps_to_numpy_s_limit(command, capsys):
         module.main([BEAD, "--seed", str(2**32)])
     err = capsys.readouterr().err
     assert info.value.code == 2 and "seed from 0 to 2**32 - 1" in err and "Traceback" not in err
+
+
+# ---- 9. commands that say what is wrong, before any work -----------------------------------
+def _learning_bench():
+    spec = importlib.util.spec_from_file_location(
+        "learning_bench", dynamics.__path__[0] + "/../benchmarks/learning.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _results(tmp_path, name, text=None, **row):
+    """A results.csv of the learning benchmark (one BeadOnRod run, `row` changed)."""
+    base = {"system": BEAD, "algo": "ppo", "seed": 0, "success": 0.9, "n": 20, "low": 0.7,
+            "high": 0.97, "to80_s": "", "to80_steps": "", "trained_steps": 100,
+            "train_s": 5.0, "lqr_share": "", "note": "", "budget_s": 60.0}  # fmt: skip
+    base.update(row)
+    path = tmp_path / name
+    if text is None:
+        text = ",".join(base) + "\n" + ",".join(str(v) for v in base.values()) + "\n"
+    path.write_text(text)
+    return str(path)
+
+
+LEARNING_COMMANDS = {  # argv (tmp_path -> list), words of the one-line error
+    "unknown env id": (lambda d: ["Lagrange/BeadOnRd-v1"], "Did you mean 'Lagrange/BeadOnRod-v1'"),
+    "a negative seed": (lambda d: [BEAD, "--seeds=-1"], "expected an integer >= 0, got -1"),
+    "no learner": (lambda d: [BEAD, "--algos", ""], "--algos names nothing"),
+    "a misspelt learner": (lambda d: [BEAD, "--algos", "ppo,sacc"], "Did you mean 'sac'?"),
+    "a learner twice": (lambda d: [BEAD, "--algos", "ppo,ppo"], "--algos names ppo twice"),
+    "an env twice": (lambda d: [BEAD, BEAD], "given twice"),
+    "--from the same file twice": (
+        lambda d: ["--from", _results(d, "a.csv"), _results(d, "a.csv")],
+        "is given twice",
+    ),
+    "--from one run in two files": (
+        lambda d: ["--from", _results(d, "a.csv"), _results(d, "b.csv")],
+        "give each run once",
+    ),
+    "--from a header alone": (
+        lambda d: ["--from", _results(d, "h.csv", text="system,algo\n")],
+        "lacks the column(s) seed",
+    ),
+    "--from a file without runs": (
+        lambda d: ["--from", _results(d, "h.csv", text=",".join(_learning_bench().FIELDS))],
+        "holds no runs",
+    ),
+    "--from a missing file": (lambda d: ["--from", str(d / "none.csv")], "is not a file"),
+    "--from a value that is no number": (
+        lambda d: ["--from", _results(d, "x.csv", success="lots")],
+        "column 'success' must be a number, got 'lots'",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", LEARNING_COMMANDS)
+def test_the_learning_benchmark_refuses_in_one_line_before_work(case, capsys, tmp_path):
+    argv, words = LEARNING_COMMANDS[case]
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:
+        _learning_bench().main([*argv(tmp_path), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and words in err, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_runs_read_back_are_labelled_by_their_own_budget(tmp_path, capsys):
+    bench = _learning_bench()
+    assert bench.main(["--from", _results(tmp_path, "a.csv"), "--out", str(tmp_path)]) == 0
+    assert "not in 60 s" in (tmp_path / "results.md").read_text()  # not the default 600 s
+
+
+def test_a_hyperparameters_file_naming_only_a_misspelt_env_is_refused(tmp_path):
+    from agents.learning.hparams import load_hyperparams
+
+    path = tmp_path / "hp.yml"
+    path.write_text("Lagrange/BeadOnRd-v1:\n  gamma: 0.9\n")
+    with pytest.raises(UserError, match="Did you mean 'Lagrange/BeadOnRod-v1'"):
+        load_hyperparams("ppo", BEAD, path)
+
+
+def test_agents_check_refuses_an_env_named_twice(capsys):
+    from agents import check
+
+    with pytest.raises(SystemExit) as info:
+        check.main([BEAD, BEAD])
+    assert info.value.code == 2 and "given twice" in capsys.readouterr().err
