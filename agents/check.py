@@ -46,6 +46,7 @@ from .common import (
     seed_int,
     set_torch_threads,
     task_of,
+    writable_folder,
     write_atomic,
 )
 from .evaluate import BASELINES, heuristic_of
@@ -364,6 +365,7 @@ def main(argv: list[str] | None = None) -> int:
         twice = sorted({e for e in env_ids if env_ids.count(e) > 1})
         if twice:
             raise UserError(f"{', '.join(twice)} given twice; name each env once.")
+        writable_folder(args.out, "--out")
         randomize = randomization.parse_option(args.randomize)
         values = params.load_for(args.params, env_ids or register_envs())
         if args.hyperparams is not None:

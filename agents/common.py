@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
+from pathlib import Path
 from typing import NoReturn
 
 import gymnasium as gym
@@ -155,6 +157,20 @@ def seed_int(text: str) -> int:
             f"expected a seed from 0 to 2**32 - 1 (numpy's limit), got {value:.3g}"
         )
     return value
+
+
+def writable_folder(path, option: str) -> None:
+    """UserError unless `path` is (or can be made) a folder this process can write into
+    (checked before the work, which would otherwise be lost)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{option} {path} is a file, not a folder.")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{option} {path} cannot be made: {exc.strerror or exc}.") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise UserError(f"{option} {path} is not writable by this user.")
 
 
 def env_slug(env_id: str) -> str:

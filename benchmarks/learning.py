@@ -48,6 +48,7 @@ from agents.common import (  # noqa: E402
     fail,
     register_envs,
     seed_int,
+    writable_folder,
     write_atomic,
 )
 from agents.learning.budget import budget_arg  # noqa: E402
@@ -247,6 +248,7 @@ def checked(args) -> tuple[list[str], list[str], list[int], list[str]]:
     repeated = sorted({e for e in args.systems if args.systems.count(e) > 1})
     if repeated:
         raise UserError(f"systems: {', '.join(repeated)} given twice; give each once.")
+    writable_folder(args.out, "--out")
     systems, skipped = (args.systems, []) if args.systems else default_systems()
     return systems, algos, seeds, skipped
 
@@ -286,6 +288,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.sources:
         try:
             rows = read_rows(args.sources)
+            writable_folder(args.out, "--out")
         except UserError as exc:
             fail(parser, exc)
         header = f"# Learning benchmark\n\nThe runs of {', '.join(args.sources)}."

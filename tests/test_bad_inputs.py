@@ -666,3 +666,56 @@ def test_agents_check_refuses_an_env_named_twice(capsys):
     with pytest.raises(SystemExit) as info:
         check.main([BEAD, BEAD])
     assert info.value.code == 2 and "given twice" in capsys.readouterr().err
+
+
+# ---- 10. no traceback where the docs promise one line --------------------------------------
+def _params_file(tmp_path, text):
+    path = tmp_path / "params.yml"
+    path.write_text(text)
+    return str(path)
+
+
+AGENT_COMMANDS = {  # (command, argv (tmp_path -> list), the words of the one-line error)
+    "train: a negative mass": (
+        "train",
+        lambda d: [BEAD, "--params", _params_file(d, "m: -1.0\n")],
+        "Parameter 'm' of bead_on_driven_rod must be positive, got -1.0",
+    ),
+    "check: a negative mass": (
+        "check",
+        lambda d: [BEAD, "--params", _params_file(d, "m: -1.0\n")],
+        "Parameter 'm' of bead_on_driven_rod must be positive, got -1.0",
+    ),
+    "train: a 400-digit integer": (
+        "train",
+        lambda d: [BEAD, "--params", _params_file(d, "m: " + "9" * 400 + "\n")],
+        "m must be a finite number, got an integer of 400 digits",
+    ),
+    "check: --out a file": ("check", lambda d: [BEAD, "--out", __file__], "is a file, not a"),
+}
+
+
+@pytest.mark.parametrize("case", AGENT_COMMANDS)
+def test_agents_commands_refuse_in_one_line_before_work(case, capsys, tmp_path):
+    command, argv, words = AGENT_COMMANDS[case]
+    module = importlib.import_module(f"agents.{command}")
+    more = ["--run-dir", str(tmp_path / "run")] if command == "train" else ["--episodes", "1"]
+    try:
+        code = module.main([*argv(tmp_path), *more])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and "Traceback" not in err, err
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_lqr_shaping_is_defined_at_gamma_one():
+    """gamma 1 is allowed by the hyperparameter rules: the potential's range is then the
+    undiscounted sum over the horizon, the limit of (1 - gamma^H) / (1 - gamma)."""
+    from agents.learning.shaping import discounted_steps
+
+    assert discounted_steps(1.0, 200) == 200.0
+    # continuous at 1: at 1 - 1e-12 the quotient is 200 (1 - 1e-10); its numerator, about
+    # 2e-10, carries a round-off of about 1e-16, a relative 1e-6 at most
+    assert discounted_steps(1.0 - 1e-12, 200) == pytest.approx(200.0, rel=1e-6)
+    assert discounted_steps(0.5, 3) == 1.75
