@@ -87,7 +87,8 @@ def check_with_model(plant) -> None:
                     name,
                     f"operating_point[{k!r}]",
                     f"names {v!r}, neither a goal component nor a parameter."
-                    f"{did_you_mean(v, known)}",
+                    f"{did_you_mean(v, known)} Goals: {', '.join(plant.goal_names) or 'none'}; "
+                    f"parameters: {', '.join(plant.p.dtype.names)}.",
                 )
     if isinstance(task.start, Mapping):
         for k, (lo, hi) in task.start.items():

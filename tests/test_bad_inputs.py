@@ -719,3 +719,78 @@ def test_the_lqr_shaping_is_defined_at_gamma_one():
     # 2e-10, carries a round-off of about 1e-16, a relative 1e-6 at most
     assert discounted_steps(1.0 - 1e-12, 200) == pytest.approx(200.0, rel=1e-6)
     assert discounted_steps(0.5, 3) == 1.75
+
+
+# ---- 11. leftovers of earlier rounds: each named in one line --------------------------------
+def _plan_with_guess(guess):
+    from agents.control.ilqr import plan
+
+    env = envs.LagrangianEnv(BASE)
+    env.reset(seed=0)
+    return plan(env, horizon=0.2, guess=guess, strict=False, max_iterations=1)
+
+
+LEFTOVERS = {
+    "a plan's guess of the wrong shape": (
+        lambda: _plan_with_guess(np.zeros((5, 3))),
+        ValueError,
+        ["plan: guess must be actions of shape (N, 1)", "got shape (5, 3)"],
+    ),
+    "a plan's guess with NaN": (
+        lambda: _plan_with_guess(np.full((5, 1), np.nan)),
+        ValueError,
+        ["plan: guess must be finite"],
+    ),
+    "a ragged state at a vector reset": (
+        lambda: _vec_reset(ARM, 2).reset(options={"state": [[0.1, 0.0, 0.0, 0.0], [0.2]]}),
+        ValueError,
+        ["options['state']", "ragged rows"],
+    ),
+    "LQRHints.R of the wrong length": (
+        lambda: dataclasses.replace(BASE, lqr=envs.LQRHints(R=(1.0, 2.0))),
+        DeclarationError,
+        ["`lqr.R`", "one per action component (1: F)", "(1.0, 2.0)"],
+    ),
+    "NaN in the operating point": (
+        lambda: dataclasses.replace(BASE, operating_point={"theta": float("nan")}),
+        DeclarationError,
+        ["`operating_point['theta']`", "must be finite"],
+    ),
+    "a goal given as a name": (
+        lambda: dataclasses.replace(BASE, goal=("x*",)),
+        DeclarationError,
+        ["`goal`", "tuple of Goal", "envs.Goal('x*'"],
+    ),
+    "a ModelSpec where its factory is expected": (
+        lambda: dataclasses.replace(BASE, model=cart_pole.TASK.model()),
+        DeclarationError,
+        ["`model`", "ModelSpec 'cart_pole' itself", "not my_spec()"],
+    ),
+    "a kinetic energy given as a list": (
+        lambda: _spec_with("unused", kinetic=lambda c, q: [q.diff() ** 2]),
+        TypeError,
+        ["kinetic must be a sympy expression", "got list"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", LEFTOVERS)
+def test_earlier_leftovers_are_named_in_one_line(case):
+    make, error, words = LEFTOVERS[case]
+    with pytest.raises(error) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert "\n" not in str(info.value)
+
+
+def test_lqr_warns_at_an_operating_point_that_is_no_equilibrium():
+    from agents.control.lqr_policy import LQRPolicy
+
+    env = envs.LagrangianEnv(dataclasses.replace(BASE, operating_point={"x_dot": 1.0}))
+    env.reset(seed=0)
+    with pytest.warns(RuntimeWarning, match="not an equilibrium: dx/dt = 1 there"):
+        LQRPolicy(env).design()
+    with warnings.catch_warnings():  # the task's own (an equilibrium) designs in silence
+        warnings.simplefilter("error", RuntimeWarning)
+        LQRPolicy(envs.LagrangianEnv(BASE)).design()
