@@ -794,3 +794,61 @@ def test_lqr_warns_at_an_operating_point_that_is_no_equilibrium():
     with warnings.catch_warnings():  # the task's own (an equilibrium) designs in silence
         warnings.simplefilter("error", RuntimeWarning)
         LQRPolicy(envs.LagrangianEnv(BASE)).design()
+
+
+# ---- 12. a user's own system: slips named in the user's words ------------------------------
+def _term_typo(x, a, goal, p):
+    return -0.1 * x.x_dott**2  # x_dot misspelt
+
+
+def _term_param_typo(x, a, goal, p):
+    return -0.1 * x.x_dot**2 * p.m_pol  # m_pole misspelt
+
+
+def _with_term(fn):
+    term = envs.Term("speed", -10.0, 0.0, "", fn)
+    return envs.LagrangianEnv(dataclasses.replace(BASE, terms=(*BASE.terms, term)))
+
+
+def _with_region(**region):
+    hints = envs.LQRHints(region={"x": 0.5, "theta": 0.1, "x_dot": 0.1, "theta_dot": 0.1, **region})
+    return envs.LagrangianEnv(dataclasses.replace(BASE, lqr=hints))
+
+
+OWN_SYSTEM = {
+    "a reward term's misspelt state": (
+        lambda: _with_term(_term_typo),
+        ["term 'speed'", "x has no name 'x_dott'", "Did you mean 'x_dot'?",
+         "x's names: x, theta, x_dot, theta_dot"],
+    ),  # fmt: skip
+    "a reward term's misspelt parameter": (
+        lambda: _with_term(_term_param_typo),
+        ["p has no name 'm_pol'", "Did you mean 'm_pole'?", "p's names: m_cart, m_pole"],
+    ),
+    "an operating point naming a misspelt goal": (
+        lambda: envs.LagrangianEnv(
+            dataclasses.replace(
+                BASE, goal=(envs.Goal("x_star", "m", -1, 1),), operating_point={"x": "x_sta"}
+            )
+        ),
+        ["'x_sta'", "Did you mean 'x_star'?", "Goals: x_star", "parameters: m_cart"],
+    ),
+    "an LQR region reaching into the failure set": (
+        lambda: _with_region(x=3.0),
+        ["`lqr.region['x']` = 3", "reaches into the failure set", "x = 3", "failure"],
+    ),
+    "an LQR region reaching beyond the limits": (
+        lambda: _with_region(x_dot=12.0),
+        ["`lqr.region['x_dot']` = 12", "beyond `limits['x_dot']` = 10"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", OWN_SYSTEM)
+def test_a_user_s_system_slip_is_named_with_the_names_it_could_mean(case):
+    make, words = OWN_SYSTEM[case]
+    with pytest.raises(DeclarationError) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert "Rows_" not in str(info.value) and "\n" not in str(info.value)
