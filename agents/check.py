@@ -39,6 +39,7 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
+    check_env_ids,
     env_slug,
     fail,
     positive_int,
@@ -361,10 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.algo is not None and args.algo not in ALGOS:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
-        env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
-        twice = sorted({e for e in env_ids if env_ids.count(e) > 1})
-        if twice:
-            raise UserError(f"{', '.join(twice)} given twice; name each env once.")
+        env_ids = check_env_ids(args.env_ids, lagrange=True)
         writable_folder(args.out, "--out")
         randomize = randomization.parse_option(args.randomize)
         values = params.load_for(args.params, env_ids or register_envs())

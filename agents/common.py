@@ -68,6 +68,29 @@ def check_env_id(env_id: str, lagrange: bool = False) -> str:
     return env_id
 
 
+def check_env_ids(env_ids, lagrange: bool = False) -> list[str]:
+    """`check_env_id` of each of `env_ids`; UserError where one is named twice (it would be
+    trained and reported twice)."""
+    checked = [check_env_id(e, lagrange) for e in env_ids]
+    twice = sorted({e for e in checked if checked.count(e) > 1})
+    if twice:
+        raise UserError(f"{', '.join(twice)} given twice; name each env once.")
+    return checked
+
+
+def check_file_applies(table: dict, path, env_id: str) -> None:
+    """UserError when the hyperparameter file at `path` (its `table`) has no entry for
+    `env_id` nor a `default` and names an env that is not registered: a misspelt id would
+    otherwise be ignored without a word."""
+    stray = [k for k in table if k != "default" and k not in gym.registry]
+    if stray and env_id not in table and "default" not in table:
+        raise UserError(
+            f"{path}: no entry for {env_id} nor a 'default', and "
+            f"{', '.join(map(repr, stray))} names no registered env."
+            f"{did_you_mean(stray[0], [env_id, 'default', *gym.registry])}"
+        )
+
+
 def fail(parser, message) -> NoReturn:
     """End a command-line program on a user error: one line, exit status 2."""
     parser.exit(2, f"{parser.prog}: error: {message}\n")

@@ -57,7 +57,6 @@ from .learning.rundir import (
     check_resume_randomize,
     default_run_dir,
     exclusive,
-    latest_checkpoint,
     prepare_run_dir,
     read_config,
     remove_stale_temporaries,
@@ -137,11 +136,8 @@ def train(
     set_torch_threads(threads)
     run_dir = Path(run_dir) if run_dir is not None else default_run_dir(env_id, algo, seed)
     env_options = _randomization(run_dir, env_id, hp, randomize, resume)
-    if resume:
-        check_resume_defines(run_dir, seed=seed, n_envs=n_envs, hyperparams=hp)
     with exclusive(run_dir):
         remove_stale_temporaries(run_dir)
-        found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite)
         config = {
             "env_id": env_id,
             "algo": algo,
@@ -154,6 +150,7 @@ def train(
             "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
+        found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite, config)
         _write_config(run_dir, config, env_id, env_options)
         options = dict(
             eval_freq=eval_freq
@@ -199,35 +196,6 @@ def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool
     if randomize is not None:
         hp["randomize"] = check_entries({"randomize": randomize}, "randomize")["randomize"]
     return randomization.env_kwargs(env_id, hp.get("randomize"))
-
-
-def check_resume_defines(run_dir: Path, **given) -> None:
-    """UserError when an option that defines the run (seed, n_envs, the resolved
-    hyperparameters, whichever file gave them) differs from what the run's config.yml
-    records: a resumed run goes on with what it began with, and its record says so (the
-    step count may grow: that is what resuming to a larger --timesteps is for)."""
-    if latest_checkpoint(run_dir / "checkpoints") is None:
-        return  # nothing to resume: a fresh run writes its own record
-    config = read_config(run_dir)
-    then, now = _flat(config, given), _flat(given, given)
-    differ = [
-        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} given"
-        for k in sorted((set(then) | set(now)) - {"hyperparams[randomize]"})  # its own check
-        if then.get(k) != now.get(k)
-    ]
-    if differ:
-        raise UserError(
-            f"{run_dir} holds a run begun with other settings ({'; '.join(differ)}); --resume "
-            "continues a run with its own (give the run's --seed, --n-envs and --hyperparams), "
-            "or start another run (--run-dir) with the new ones."
-        )
-
-
-def _flat(config: dict, keys) -> dict:
-    """`config`'s `keys` as config.yml stores them, the hyperparameters one by one."""
-    flat = yaml.safe_load(yaml.safe_dump({k: config.get(k) for k in keys}))
-    flat.update((f"hyperparams[{k}]", v) for k, v in (flat.pop("hyperparams") or {}).items())
-    return flat
 
 
 def _write_config(run_dir: Path, config: dict, env_id: str, env_options: dict) -> None:

@@ -10,7 +10,6 @@ runtime compiles them. The numbers and names themselves are checked by the one v
 
 from __future__ import annotations
 
-import re
 import warnings
 from collections.abc import Callable, Mapping
 
@@ -197,34 +196,8 @@ def _slip(plant, field: str, fn, when: str, exc: Exception) -> DeclarationError:
     text = str(exc)
     if text.startswith(f"Task {plant.task.name!r}"):  # envs.names' check of its names
         return DeclarationError(text)
-    text = missing_field(exc, plant.p) or f"{type(exc).__name__}: {text}"
+    text = names.missing_field(exc, plant.p) or f"{type(exc).__name__}: {text}"
     return _fail(plant.task.name, field, f"function {names.label(fn)}{when}: {text}")
-
-
-_ARGUMENTS = {"Rows": "x", "Actions": "a", "Goal": "goal"}
-"""The argument of a task function that each record type of `envs.names` is."""
-
-
-def missing_field(exc: Exception, p=None) -> str | None:
-    """A task function's misspelt name, in one line: which input (x, a, goal or p) lacks
-    it, a suggestion and the names it has; None for any other error. (Python names the
-    runtime's record class, e.g. 'Rows_97f252393812', which the user never wrote.)"""
-    found = re.search(r"has no attribute '(\w+)'", str(exc))
-    if not isinstance(exc, AttributeError) or not found:
-        return None
-    obj = getattr(exc, "obj", None)
-    fields = getattr(obj, "_fields", None)
-    if fields is not None:
-        which = _ARGUMENTS.get(type(obj).__name__.split("_")[0], type(obj).__name__)
-    elif p is not None and (obj is None or isinstance(obj, np.record)):
-        which, fields = "p", p.dtype.names  # (a numpy record's error names no object)
-    else:
-        return None
-    name = found[1]
-    return (
-        f"{which} has no name {name!r}.{did_you_mean(name, fields)} "
-        f"{which}'s names: {', '.join(fields) or 'none'}."
-    )
 
 
 def _check_starts(plant) -> None:
@@ -340,7 +313,7 @@ def _call(task_name: str, label: str, fn: Callable, args):
             ) from None
         raise DeclarationError(f"Task {task_name!r}: {label} fails on sample rows: {exc}") from exc
     except Exception as exc:
-        text = missing_field(exc, args[-1] if isinstance(args[-1], np.record) else None)
+        text = names.missing_field(exc, args[-1] if isinstance(args[-1], np.record) else None)
         raise DeclarationError(
             f"Task {task_name!r}: {label} fails on sample rows: "
             + (text or f"{type(exc).__name__}: {exc}")
@@ -403,54 +376,9 @@ def trial_run(plant, functions) -> None:
         else:
             _column(name, label, out, n, "real")
     if "failure" in functions:
-        _check_region(plant, *functions["failure"])
+        from .region import check_region  # (which imports this module)
 
-
-def _check_region(plant, label: str, failure) -> None:
-    """The start region the task declares for LQR (`lqr.region`) stays inside the limits
-    and outside the failure set: the operating point of a sample goal moved by each
-    half-width alone, either way, is tried (else LQR's score counts starts that fail at
-    once, e.g. a ball placed past the beam's end, and gives no reason)."""
-    task = plant.task
-    region = dict(task.lqr.region or {})
-    if not region or task.operating_point is None:
-        return
-    from .starts import sample_rows, with_outputs
-
-    names = plant.state_names
-    rows, g = sample_rows(plant, 1, outputs=False)
-    try:
-        with np.errstate(all="ignore"):
-            x0 = plant.operating_state(g, rows)[0]
-    except Exception:  # the operating point's own slips are named by _check_operating_point
-        return
-    moves = [(k, sign * float(plant.resolve(w))) for k, w in region.items() for sign in (1, -1)]
-    x = np.tile(x0, (len(moves), 1))
-    for row, (k, step) in enumerate(moves):
-        x[row, names.index(k)] += step
-    beyond = np.abs(x) > plant.limits
-    if beyond.any():
-        row, i = (int(v) for v in np.argwhere(beyond)[0])
-        raise _fail(
-            task.name,
-            f"lqr.region[{moves[row][0]!r}]",
-            f"= {abs(moves[row][1]):.6g} about the operating point reaches {names[i]} = "
-            f"{x[row, i]:.6g}, beyond `limits[{names[i]!r}]` = {plant.limits[i]:.6g}.",
-        )
-    full = with_outputs(plant, x)
-    a = np.zeros((len(x), len(plant.actuated)))
-    with np.errstate(all="ignore"):
-        failed = np.asarray(failure(full, a, np.repeat(g, len(x), axis=0), plant.p), dtype=bool)
-    if failed.any():
-        row = int(np.argmax(failed))
-        k, step = moves[row]
-        raise _fail(
-            task.name,
-            f"lqr.region[{k!r}]",
-            f"= {abs(step):.6g} reaches into the failure set: the operating point with {k} "
-            f"{'+' if step > 0 else '-'}{abs(step):.6g} ({k} = {x[row, names.index(k)]:.6g}) "
-            f"fails by {label} at once; make the region smaller than the failure bound.",
-        )
+        check_region(plant, *functions["failure"])
 
 
 __all__ = ["DeclarationError", "Unsupported", "check_equilibrium", "check_with_model",

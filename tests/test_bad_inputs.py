@@ -563,11 +563,11 @@ def test_a_resume_with_another_defining_option_is_refused_unwritten(case, tmp_pa
 
 def test_a_resume_with_the_run_s_own_settings_passes_the_check(tmp_path):
     from agents.learning.hparams import load_hyperparams
-    from agents.train import check_resume_defines
+    from agents.learning.rundir import check_resume_defines
 
     _recorded_run(tmp_path)
     hp = load_hyperparams("ppo", BEAD)
-    check_resume_defines(tmp_path, seed=0, n_envs=8, hyperparams=hp)
+    check_resume_defines(tmp_path, {"seed": 0, "n_envs": 8, "hyperparams": hp, "algo": "ppo"})
 
 
 @pytest.mark.parametrize("command", ["train", "check", "evaluate", "lqr", "plan"])

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from dynamics.checks import ALGORITHMS, did_you_mean, unknown
+from dynamics.checks import ALGORITHMS, unknown
 
-from ..common import UserError, task_of
+from ..common import UserError, check_file_applies, task_of
 from ..values import (
     Bad,
     choice,
@@ -316,24 +316,10 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     hp.update(check_entries(packaged.get(env_id, {}), f"{packaged_path} ({env_id})"))
     if path is not None:
         user = read_table(Path(path))
-        check_applies(user, path, env_id)
+        check_file_applies(user, path, env_id)
         for entry in ("default", env_id):
             hp.update(check_entries(user.get(entry, {}), f"{path} ({entry})"))
     return hp
-
-
-def check_applies(user: dict, path, env_id: str) -> None:
-    """UserError when the file at `path` has no entry for `env_id` nor a `default` and names
-    an env that is not registered (a misspelt id would otherwise be ignored without a word)."""
-    import gymnasium as gym
-
-    stray = [k for k in user if k != "default" and k not in gym.registry]
-    if stray and env_id not in user and "default" not in user:
-        raise UserError(
-            f"{path}: no entry for {env_id} nor a 'default', and "
-            f"{', '.join(map(repr, stray))} names no registered env."
-            f"{did_you_mean(stray[0], [env_id, 'default', *gym.registry])}"
-        )
 
 
 def derived_for(env_id: str, task, own: dict) -> dict:
