@@ -44,6 +44,7 @@ import gymnasium as gym  # noqa: E402
 from agents.common import (  # noqa: E402
     UserError,
     check_env_id,
+    check_env_ids,
     env_slug,
     fail,
     register_envs,
@@ -243,11 +244,7 @@ def checked(args) -> tuple[list[str], list[str], list[int], list[str]]:
 
     algos = _listed("--algos", args.algos, check_algo_name)
     seeds = _listed("--seeds", args.seeds, _seed)
-    for system in args.systems:
-        check_env_id(system, lagrange=True)
-    repeated = sorted({e for e in args.systems if args.systems.count(e) > 1})
-    if repeated:
-        raise UserError(f"systems: {', '.join(repeated)} given twice; give each once.")
+    check_env_ids(args.systems, lagrange=True)
     writable_folder(args.out, "--out")
     systems, skipped = (args.systems, []) if args.systems else default_systems()
     return systems, algos, seeds, skipped
