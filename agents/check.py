@@ -39,13 +39,15 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
+    check_env_ids,
     env_slug,
     fail,
-    non_negative_int,
     positive_int,
     register_envs,
+    seed_int,
     set_torch_threads,
     task_of,
+    writable_folder,
     write_atomic,
 )
 from .evaluate import BASELINES, heuristic_of
@@ -311,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes per agent"
     )
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="first episode's seed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="first episode's seed")
     parser.add_argument(
         "--timesteps",
         type=positive_int,
@@ -360,7 +362,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.algo is not None and args.algo not in ALGOS:
         parser.error(f"unknown algorithm {args.algo!r}; choose from {', '.join(ALGOS)}")
     try:
-        env_ids = [check_env_id(e, lagrange=True) for e in args.env_ids]
+        env_ids = check_env_ids(args.env_ids, lagrange=True)
+        writable_folder(args.out, "--out")
         randomize = randomization.parse_option(args.randomize)
         values = params.load_for(args.params, env_ids or register_envs())
         if args.hyperparams is not None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
+from pathlib import Path
 from typing import NoReturn
 
 import gymnasium as gym
@@ -64,6 +66,29 @@ def check_env_id(env_id: str, lagrange: bool = False) -> str:
     if lagrange:
         task_of(env_id)
     return env_id
+
+
+def check_env_ids(env_ids, lagrange: bool = False) -> list[str]:
+    """`check_env_id` of each of `env_ids`; UserError where one is named twice (it would be
+    trained and reported twice)."""
+    checked = [check_env_id(e, lagrange) for e in env_ids]
+    twice = sorted({e for e in checked if checked.count(e) > 1})
+    if twice:
+        raise UserError(f"{', '.join(twice)} given twice; name each env once.")
+    return checked
+
+
+def check_file_applies(table: dict, path, env_id: str) -> None:
+    """UserError when the hyperparameter file at `path` (its `table`) has no entry for
+    `env_id` nor a `default` and names an env that is not registered: a misspelt id would
+    otherwise be ignored without a word."""
+    stray = [k for k in table if k != "default" and k not in gym.registry]
+    if stray and env_id not in table and "default" not in table:
+        raise UserError(
+            f"{path}: no entry for {env_id} nor a 'default', and "
+            f"{', '.join(map(repr, stray))} names no registered env."
+            f"{did_you_mean(stray[0], [env_id, 'default', *gym.registry])}"
+        )
 
 
 def fail(parser, message) -> NoReturn:
@@ -140,6 +165,35 @@ def non_negative_int(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
     return value
+
+
+SEED_LIMIT = 2**32
+"""Seeds are below this: stable-baselines3 seeds numpy's global generator, which takes no
+larger seed; every command's --seed keeps to it, so one seed means the same in each."""
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer from 0 to SEED_LIMIT - 1."""
+    value = non_negative_int(text)
+    if value >= SEED_LIMIT:
+        raise argparse.ArgumentTypeError(
+            f"expected a seed from 0 to 2**32 - 1 (numpy's limit), got {value:.3g}"
+        )
+    return value
+
+
+def writable_folder(path, option: str) -> None:
+    """UserError unless `path` is (or can be made) a folder this process can write into
+    (checked before the work, which would otherwise be lost)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{option} {path} is a file, not a folder.")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{option} {path} cannot be made: {exc.strerror or exc}.") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise UserError(f"{option} {path} is not writable by this user.")
 
 
 def env_slug(env_id: str) -> str:

@@ -22,8 +22,8 @@ from .common import (
     check_env_id,
     fail,
     lagrange_env,
-    non_negative_int,
     positive_int,
+    seed_int,
     task_of,
 )
 from .control.policies import RandomPolicy, ZeroPolicy
@@ -166,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"{', '.join(BASELINES)}, or a trained model (model.zip or its run directory)",
     )
     parser.add_argument("--episodes", type=positive_int, default=20)
-    parser.add_argument("--seed", type=non_negative_int, default=0)
+    parser.add_argument("--seed", type=seed_int, default=0)
     params.add_option(parser)
     parser.add_argument("--video", metavar="DIR", help="record the first episode to DIR (mp4)")
     parser.add_argument("--stochastic", action="store_true", help="sample trained policies")

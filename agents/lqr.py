@@ -16,8 +16,8 @@ from .common import (
     atomic_path,
     check_env_id,
     fail,
-    non_negative_int,
     positive_int,
+    seed_int,
 )
 from .control.linear import UncontrollableError
 from .control.lqr_policy import (  # noqa: F401  (the library's names, as imported from here before)
@@ -145,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
         "env_id", help="a Lagrange env id, e.g. Lagrange/Acrobot-v2, or module:NS/Env-v0"
     )
     parser.add_argument("--episodes", type=positive_int, default=100, help="seeded episodes (100)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="first seed (0)")
+    parser.add_argument("--seed", type=seed_int, default=0, help="first seed (0)")
     params.add_option(parser)
     parser.add_argument(
         "--plant",

@@ -95,9 +95,27 @@ def load(path: str | Path, env_id: str) -> dict[str, float]:
             where = f"--params: {path}"
             raise UserError(str(unknown(f"parameter of {env_id}'s model", name, known, where)))
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if not ok or not math.isfinite(value):
-            raise UserError(f"--params: {path}: {name} must be a finite number, got {value!r}.")
-        values[str(name)] = float(value)
+        try:
+            number = float(value) if ok else math.nan
+        except OverflowError:  # an integer of hundreds of digits
+            number = math.inf
+        if not math.isfinite(number):
+            raise UserError(
+                f"--params: {path}: {name} must be a finite number, got {_shown(value)}."
+            )
+        values[str(name)] = number
+    return _held_by_model(path, env_id, values)
+
+
+def _held_by_model(path, env_id: str, values: dict[str, float]) -> dict[str, float]:
+    """`values`, once the model takes them (signs, ranges, conditions, bodies); UserError
+    in the model's words otherwise, before any work."""
+    from envs.resolved import compile_system
+
+    try:
+        compile_system(task_of(env_id).model, values)
+    except ValueError as exc:
+        raise UserError(f"--params: {path}: {exc}") from None
     return values
 
 
@@ -182,3 +200,8 @@ def applied_all(values: dict[str, dict[str, float]]):
         for env_id, these in values.items():
             stack.enter_context(applied(env_id, these))
         yield
+
+
+def _shown(value) -> str:
+    digits = len(str(abs(value))) if isinstance(value, int) else 0
+    return f"an integer of {digits} digits" if digits > 20 else f"{value!r:.60}"

@@ -19,8 +19,8 @@ from .common import (
     atomic_path,
     check_env_id,
     fail,
-    non_negative_int,
     positive_number,
+    seed_int,
 )
 from .control.ilqr import (  # noqa: F401  (the planner's names, as imported from here before)
     DEFAULTS,
@@ -96,7 +96,7 @@ def plot(path, env_id: str, tracker, states, actions, names) -> None:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m agents.plan", description=__doc__)
     parser.add_argument("env_id", help="a Lagrange env id, e.g. Lagrange/Acrobot-v2")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="start's seed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="start's seed")
     parser.add_argument("--horizon", type=positive_number, help="plan length, s (task's)")
     parser.add_argument("--replan", action="store_true", help="plan from the drawn start")
     parser.add_argument("--plot", metavar="FILE", help="write the motion as an image")

@@ -33,8 +33,8 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
-    non_negative_int,
     positive_int,
+    seed_int,
     set_torch_threads,
     task_of,
     trained_line,
@@ -138,7 +138,6 @@ def train(
     env_options = _randomization(run_dir, env_id, hp, randomize, resume)
     with exclusive(run_dir):
         remove_stale_temporaries(run_dir)
-        found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite)
         config = {
             "env_id": env_id,
             "algo": algo,
@@ -151,6 +150,7 @@ def train(
             "task": task_fingerprint(env_id),  # agents.check reuses only the same declaration
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
+        found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite, config)
         _write_config(run_dir, config, env_id, env_options)
         options = dict(
             eval_freq=eval_freq
@@ -291,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
         "met it, else the best evaluated (agents.learning.budget). Not repeatable: use "
         "--timesteps for that",
     )
-    parser.add_argument("--seed", type=non_negative_int, default=0)
+    parser.add_argument("--seed", type=seed_int, default=0)
     parser.add_argument("--n-envs", type=positive_int, help="parallel envs (default: YAML n_envs)")
     parser.add_argument(
         "--hyperparams",

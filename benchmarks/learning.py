@@ -41,13 +41,24 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import gymnasium as gym  # noqa: E402
 
-from agents.common import check_env_id, env_slug, register_envs, write_atomic  # noqa: E402
+from agents.common import (  # noqa: E402
+    UserError,
+    check_env_id,
+    check_env_ids,
+    env_slug,
+    fail,
+    register_envs,
+    seed_int,
+    writable_folder,
+    write_atomic,
+)
 from agents.learning.budget import budget_arg  # noqa: E402
 from agents.scoring.report import wilson_interval  # noqa: E402
 
 ALGOS = ("ppo", "sac", "tqc", "crossq")
+DEFAULT_BUDGET = 600.0
 FIELDS = ("system algo seed success n low high to80_s to80_steps trained_steps train_s "
-          "lqr_share note").split()  # fmt: skip
+          "lqr_share note budget_s").split()  # fmt: skip
 
 
 def example_systems() -> tuple[list[str], list[str]]:
@@ -102,6 +113,7 @@ def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dic
         "to80_s": solved.get("seconds", ""), "to80_steps": solved.get("timesteps", ""),
         "trained_steps": result.timesteps, "train_s": round(result.wall_s, 1),
         "lqr_share": "" if share is None else round(share, 3), "note": note,
+        "budget_s": seconds,
     }  # fmt: skip
 
 
@@ -114,7 +126,9 @@ def table(rows: list[dict], seconds: float, header: str) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        to_s = f"{r['to80_s']:.0f}" if r["to80_s"] != "" else f"not in {seconds:g} s"
+        budget = r.get("budget_s") or seconds  # each run's own budget, where it says it
+        to_s = f"{r['to80_s']:.0f}" if r["to80_s"] != "" else (
+            f"not in {budget:g} s" if budget else "not in its budget")
         to_n = f"{r['to80_steps']:,}" if r["to80_steps"] != "" else ""
         lines.append(
             f"| {r['system']} | {r['algo']} | {r['seed']} | {r['success']:.0%} "
@@ -152,19 +166,66 @@ def seeds_table(rows: list[dict]) -> list[str]:
 
 
 def read_rows(paths: list[str]) -> list[dict]:
-    """The rows of earlier runs' results.csv files (`--from`), typed as `run_one` gives them."""
-    rows = []
+    """The rows of earlier runs' results.csv files (`--from`), typed as `run_one` gives them;
+    UserError of one line for a file given twice, missing, without runs or a column, with a
+    value that is no number, or a run that another file holds too."""
+    rows, seen, where = [], set(), {}
     for path in paths:
-        with open(path, newline="") as f:
-            for r in csv.DictReader(f):
-                for key in ("success", "low", "high", "train_s"):
-                    r[key] = float(r[key])
-                for key in ("seed", "n", "trained_steps"):
-                    r[key] = int(r[key])
-                r["to80_s"] = float(r["to80_s"]) if r["to80_s"] else ""
-                r["to80_steps"] = int(r["to80_steps"]) if r["to80_steps"] else ""
-                rows.append(r)
+        if Path(path).resolve() in seen:
+            raise UserError(f"--from: {path} is given twice (its runs would count twice).")
+        seen.add(Path(path).resolve())
+        for line, r in _csv_rows(path):
+            key = (r["system"], r["algo"], r["seed"])
+            if key in where:
+                raise UserError(
+                    f"--from: the run {' '.join(map(str, key))} is in {where[key]} and in "
+                    f"{path}:{line}; give each run once."
+                )
+            where[key] = f"{path}:{line}"
+            rows.append(r)
     return rows
+
+
+def _csv_rows(path: str):
+    """(line number, typed row) of one results.csv."""
+    if not Path(path).is_file():
+        raise UserError(f"--from: {path} is not a file.")
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        needed = [k for k in FIELDS if k != "budget_s"]  # (older files have no budget)
+        missing = [k for k in needed if k not in (reader.fieldnames or [])]
+        if missing:
+            raise UserError(
+                f"--from: {path} lacks the column(s) {', '.join(missing)}; a results.csv of "
+                f"this benchmark has {', '.join(FIELDS)}."
+            )
+        count = 0
+        for count, r in enumerate(reader, start=1):
+            yield count + 1, _typed(r, f"{path}:{count + 1}")
+    if count == 0:
+        raise UserError(f"--from: {path} holds no runs (a header alone).")
+
+
+def _typed(r: dict, where: str) -> dict:
+    kinds = {"success": float, "low": float, "high": float, "train_s": float, "seed": int,
+             "n": int, "trained_steps": int, "to80_s": float, "to80_steps": int,
+             "budget_s": float}  # fmt: skip
+    for key, kind in kinds.items():
+        blank = key in ("to80_s", "to80_steps", "budget_s")  # blank: not met / not recorded
+        value = r.get(key) or ""
+        if blank and value == "":  # (a run that did not record its budget says none)
+            r[key] = ""
+            if key == "budget_s":
+                r.pop(key, None)
+            continue
+        try:
+            r[key] = kind(value)
+        except ValueError:
+            what = "an integer" if kind is int else "a number"
+            raise UserError(
+                f"--from: {where}: column {key!r} must be {what}, got {value!r:.40}."
+            ) from None
+    return r
 
 
 def write(rows: list[dict], out: Path, seconds: float, header: str) -> None:
@@ -176,11 +237,45 @@ def write(rows: list[dict], out: Path, seconds: float, header: str) -> None:
     write_atomic(out / "results.csv", buffer.getvalue())
 
 
+def checked(args) -> tuple[list[str], list[str], list[int], list[str]]:
+    """(systems, algos, seeds, skipped notes) of the command line, each checked before any
+    work; UserError of one line naming the option, the value and what it may be."""
+    from agents.learning.hparams import check_algo_name
+
+    algos = _listed("--algos", args.algos, check_algo_name)
+    seeds = _listed("--seeds", args.seeds, _seed)
+    check_env_ids(args.systems, lagrange=True)
+    writable_folder(args.out, "--out")
+    systems, skipped = (args.systems, []) if args.systems else default_systems()
+    return systems, algos, seeds, skipped
+
+
+def _seed(text: str) -> int:
+    try:
+        return seed_int(text)
+    except argparse.ArgumentTypeError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _listed(option: str, text: str, check) -> list:
+    """The comma-separated entries of `option`, each checked, once each."""
+    names = [a.strip() for a in text.split(",") if a.strip()]
+    if not names:
+        raise UserError(f"{option} names nothing ({text!r}); give one or more, comma-separated.")
+    repeated = sorted({a for a in names if names.count(a) > 1})
+    if repeated:
+        raise UserError(f"{option} names {', '.join(repeated)} twice; give each once.")
+    try:
+        return [check(a) for a in names]
+    except ValueError as exc:
+        raise UserError(f"{option}: {exc}") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("systems", nargs="*", help="env ids or module:NS/Env-v0 (default: all)")
     parser.add_argument("--algos", default=",".join(ALGOS), help="comma-separated learners")
-    parser.add_argument("--budget", type=budget_arg, default=600.0, help="per run (default 10m)")
+    parser.add_argument("--budget", type=budget_arg, help="per run (default 10m)")
     parser.add_argument("--seeds", default="0", help="training seeds, comma-separated")
     parser.add_argument("--out", default="runs/learning", help="output directory")
     parser.add_argument("--from", dest="sources", nargs="+", metavar="CSV",
@@ -188,19 +283,24 @@ def main(argv: list[str] | None = None) -> int:
                         "(runs split over several processes), written to OUT")  # fmt: skip
     args = parser.parse_args(argv)
     if args.sources:
-        rows = read_rows(args.sources)
+        try:
+            rows = read_rows(args.sources)
+            writable_folder(args.out, "--out")
+        except UserError as exc:
+            fail(parser, exc)
         header = f"# Learning benchmark\n\nThe runs of {', '.join(args.sources)}."
         write(rows, Path(args.out), args.budget, header)
         print(table(rows, args.budget, header))
         return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from agents.common import set_torch_threads
-    from agents.learning.hparams import check_algo_name
 
+    args.budget = args.budget or DEFAULT_BUDGET
+    try:
+        systems, algos, seeds, skipped = checked(args)
+    except UserError as exc:
+        fail(parser, exc)
     set_torch_threads(1)
-    algos = [check_algo_name(a.strip()) for a in args.algos.split(",") if a.strip()]
-    seeds = [int(s) for s in args.seeds.split(",")]
-    systems, skipped = (args.systems, []) if args.systems else default_systems()
     out = Path(args.out)
     header = (
         f"# Learning benchmark\n\n{datetime.date.today()}, {platform.node() or 'this machine'}"

@@ -6,10 +6,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 from pathlib import Path
 
-from agents.common import UserError, check_env_id, env_slug
+from agents.common import UserError, check_env_id, env_slug, writable_folder
 from benchmarks.robustness_report import AGENTS
 from dynamics.checks import did_you_mean
 
@@ -125,18 +124,6 @@ def check_quantities(env_ids: list[str], wanted: list[str]) -> None:
                 f"--quantities: {w!r} is no quantity of {', '.join(env_ids)}."
                 f"{did_you_mean(w, sorted(known))} Known: {', '.join(sorted(known))}."
             )
-
-
-def writable_folder(path: Path, option: str) -> None:
-    """UserError unless `path` is (or can be made) a folder this process can write into."""
-    if path.exists() and not path.is_dir():
-        raise UserError(f"{option} {path} is a file, not a folder.")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{option} {path} cannot be made: {exc.strerror or exc}.") from None
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise UserError(f"{option} {path} is not writable by this user.")
 
 
 def check_models(env_id: str, models: Path, wanted: list[str]) -> None:

@@ -2,7 +2,9 @@
 `envs/fused.py`, which use the same mechanism).
 
 Each compiled model is one Python file named by a key that hashes everything its code depends
-on; numba keeps its machine code beside it (``__pycache__``). The file's first line records
+on; numba keeps its machine code beside it (``__pycache__``), and that of the task functions
+users write in ``functions/`` (`function_cache`). The cache is bounded: least recently used
+entries are pruned past a stated size (`dynamics.pruning`; `python -m dynamics cache`). The file's first line records
 its key and the sha256 of the rest, and both are checked before the file is run: that finds
 damage, not tampering (anyone who can write the file can write the line too). Where the loader
 knows the exact text it expects (the fused steps, a pickled model's own source) it compares
@@ -29,6 +31,7 @@ be written).
 from __future__ import annotations
 
 import atexit
+import functools
 import hashlib
 import io
 import os
@@ -43,6 +46,7 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from . import pruning
 from .files import write_atomic
 
 try:
@@ -295,9 +299,71 @@ def load(name: str, key: str, body: str | None = None) -> ModuleType | None:
         module = _load_file(path, key, text)
         if module is None:
             raise RuntimeError(f"The generated module {path} does not load.")
+        pruning.keep_bounded(path.parent)  # a new entry: the cache stays within its bound
     if module is not None:
+        pruning.mark_used(path)
         _loaded[key] = module
     return module
+
+
+def function_cache(fn):
+    """numba's on-disk cache for `fn`, a task function a user wrote, inside this cache
+    (`pruning.FUNCTIONS`, bounded with the rest) instead of numba's default, the
+    `__pycache__` beside the user's source. numba's own cache class with a locator of its
+    documented kind (`numba.core.caching`); set it as the dispatcher's cache before the
+    first compile (what `njit(cache=True)` does with the default locator). OSError where
+    the cache cannot be used (the caller then compiles without a disk cache)."""
+    root = cache_dir() / pruning.FUNCTIONS
+    root.mkdir(mode=0o700, exist_ok=True)
+    cache = _function_cache_class()(fn)
+    index = Path(cache.cache_path) / f"{cache._impl.filename_base}.nbi"
+    if not _numba_index_sound(index):
+        cache.flush()  # a damaged index: numba would crash on it; recompile instead
+    pruning.mark_used(index)
+    return cache
+
+
+def _numba_index_sound(index: Path) -> bool:
+    """Whether the index at `index` and its data files are well-formed pickles (or absent)."""
+    try:
+        if index.exists() and not _well_formed_pickles(read_bytes(index), 2):
+            return False
+        for data in index.parent.glob(f"{pruning.glob_escape(index.stem)}.*.nbc"):
+            if not _well_formed_pickles(read_bytes(data), 1):
+                return False
+    except OSError:
+        return False
+    return True
+
+
+@functools.cache
+def _function_cache_class():
+    from numba.core.caching import (
+        CompileResultCacheImpl,
+        FunctionCache,
+        UserProvidedCacheLocator,
+    )
+
+    class Locator(UserProvidedCacheLocator):
+        """numba's locator for a cache folder of one's own (as NUMBA_CACHE_DIR gives), here
+        this cache's `functions/`, for these functions only."""
+
+        def __init__(self, py_func, py_file):
+            super().__init__(py_func, py_file)
+            root = cache_dir() / pruning.FUNCTIONS
+            self._cache_path = str(root / self.get_suitable_cache_subpath(py_file))
+
+        @classmethod
+        def from_function(cls, py_func, py_file):  # (the parent's asks for NUMBA_CACHE_DIR)
+            return super(UserProvidedCacheLocator, cls).from_function(py_func, py_file)
+
+    class Impl(CompileResultCacheImpl):
+        _locator_classes = [Locator]
+
+    class Cache(FunctionCache):
+        _impl_class = Impl
+
+    return Cache
 
 
 def load_or_build(name: str, key: str, build: Callable[[], str]) -> ModuleType:

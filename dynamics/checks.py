@@ -67,8 +67,15 @@ def _label(owner: str, label: str) -> str:
 
 def real_array(value, label: str, owner: str = "") -> np.ndarray:
     """`value` as a float64 array; TypeError naming `label` (and `owner`, where given)
-    unless it holds real numbers (booleans, complex values and text are refused)."""
-    a = np.asarray(value)
+    unless it holds real numbers (booleans, complex values and text are refused); a
+    ValueError naming it for ragged rows (which numpy cannot make an array of)."""
+    try:
+        a = np.asarray(value)
+    except ValueError:
+        raise ValueError(
+            f"{_label(owner, label)} must be an array of numbers whose rows all have the same "
+            f"length, got ragged rows {value!r:.200}."
+        ) from None
     kind = a.dtype.kind
     if kind == "c":
         raise TypeError(f"{_label(owner, label)} must be real, got complex values {value!r}.")

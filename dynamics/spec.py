@@ -8,6 +8,7 @@ nonholonomic (Pfaffian) constraints, coordinates whose motion is prescribed in t
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -98,12 +99,7 @@ class ModelSpec:
         names = [str(s) for s in self.parameters] + [str(s) for s in self.inputs]
         if len(set(names)) != len(names):
             raise ValueError(f"{self.name}: parameter and input names must be unique: {names}.")
-        for label, value in self._expressions():
-            if isinstance(value, str):  # sympify would eval it: never pass text on
-                raise TypeError(
-                    f"{self.name}: {label} is text {value!r}; give a sympy expression "
-                    "(dynamics.parse.parse_expression reads text without running code)."
-                )
+        self._refuse_text()
         for q in (*self.coordinates, *self.prescribed):
             if getattr(q, "args", None) != (t,):
                 raise ValueError(
@@ -129,6 +125,36 @@ class ModelSpec:
 
         self._check_symbols()
         self._check_bodies()
+
+    def _refuse_text(self) -> None:
+        """No field sympy would parse holds text (sympify evals it: never pass text on), and
+        every expression is a sympy object or a number (a list is no energy)."""
+        for label, value in self._sympy_fields():
+            text = _first_text(value)
+            if text is not None:
+                raise TypeError(
+                    f"{self.name}: {label} is text {text!r:.80}; give a sympy expression "
+                    "(dynamics.parse.parse_expression reads text without running code)."
+                )
+        for label, value in self._expressions():
+            if not isinstance(value, (sp.Basic, sp.MatrixBase, numbers.Real)) or isinstance(
+                value, bool
+            ):
+                raise TypeError(
+                    f"{self.name}: {label} must be a sympy expression (or a number), got "
+                    f"{type(value).__name__} {value!r:.80}."
+                )
+
+    def _sympy_fields(self):
+        """Every field whose entries sympy could parse: the expressions, the symbols, the
+        bodies' moments (names, units and statements are text by design)."""
+        yield from self._expressions()
+        yield "coordinates", tuple(self.coordinates)
+        yield "inputs", tuple(self.inputs)
+        yield "parameters (its keys)", tuple(self.parameters)
+        yield "forces (its keys)", tuple(self.forces)
+        yield "prescribed (its keys)", tuple(self.prescribed)
+        yield from ((f"bodies[{k!r}]", v) for k, v in self.bodies.items())
 
     def _check_symbols(self) -> None:
         """Every symbol in T, V, Q, the constraints, outputs, conditions and points is a
@@ -200,6 +226,17 @@ class ModelSpec:
         if nonnegative:
             parts.append(f"nonnegative {nonnegative}")
         return "\n".join(parts)
+
+
+def _first_text(value):
+    """The first str or bytes in `value` (nested tuples, lists, dicts, matrices), else None."""
+    if isinstance(value, (str, bytes)):
+        return value
+    if isinstance(value, Mapping):
+        value = [*value.keys(), *value.values()]
+    if isinstance(value, (tuple, list, sp.MatrixBase)):
+        return next((x for x in map(_first_text, value) if x is not None), None)
+    return None
 
 
 def inertia_matrix(inertia) -> sp.Matrix:

@@ -10,7 +10,6 @@ runtime compiles them. The numbers and names themselves are checked by the one v
 
 from __future__ import annotations
 
-import re
 import warnings
 from collections.abc import Callable, Mapping
 
@@ -87,7 +86,8 @@ def check_with_model(plant) -> None:
                     name,
                     f"operating_point[{k!r}]",
                     f"names {v!r}, neither a goal component nor a parameter."
-                    f"{did_you_mean(v, known)}",
+                    f"{did_you_mean(v, known)} Goals: {', '.join(plant.goal_names) or 'none'}; "
+                    f"parameters: {', '.join(plant.p.dtype.names)}.",
                 )
     if isinstance(task.start, Mapping):
         for k, (lo, hi) in task.start.items():
@@ -196,18 +196,8 @@ def _slip(plant, field: str, fn, when: str, exc: Exception) -> DeclarationError:
     text = str(exc)
     if text.startswith(f"Task {plant.task.name!r}"):  # envs.names' check of its names
         return DeclarationError(text)
-    hint = ""
-    missing = (
-        re.search(r"has no attribute '(\w+)'", text) if isinstance(exc, AttributeError) else None
-    )
-    if missing:
-        obj = getattr(exc, "obj", None)
-        known = getattr(obj, "_fields", None) or (
-            plant.p.dtype.names if obj is None or isinstance(obj, np.record) else ()
-        )  # a numpy record's own error names no object
-        hint = did_you_mean(missing[1], known)
-    return _fail(plant.task.name, field, f"function {names.label(fn)}{when}: "
-                 f"{type(exc).__name__}: {text}{'.' + hint if hint else ''}")  # fmt: skip
+    text = names.missing_field(exc, plant.p) or f"{type(exc).__name__}: {text}"
+    return _fail(plant.task.name, field, f"function {names.label(fn)}{when}: {text}")
 
 
 def _check_starts(plant) -> None:
@@ -323,9 +313,11 @@ def _call(task_name: str, label: str, fn: Callable, args):
             ) from None
         raise DeclarationError(f"Task {task_name!r}: {label} fails on sample rows: {exc}") from exc
     except Exception as exc:
+        text = names.missing_field(exc, args[-1] if isinstance(args[-1], np.record) else None)
         raise DeclarationError(
-            f"Task {task_name!r}: {label} fails on sample rows: {type(exc).__name__}: {exc}"
-        ) from exc
+            f"Task {task_name!r}: {label} fails on sample rows: "
+            + (text or f"{type(exc).__name__}: {exc}")
+        ) from (None if text else exc)
 
 
 def _column(task_name: str, label: str, value, n: int, kind: str) -> np.ndarray:
@@ -383,6 +375,10 @@ def trial_run(plant, functions) -> None:
             _column(name, label, out, n, "bool")
         else:
             _column(name, label, out, n, "real")
+    if "failure" in functions:
+        from .region import check_region  # (which imports this module)
+
+        check_region(plant, *functions["failure"])
 
 
 __all__ = ["DeclarationError", "Unsupported", "check_equilibrium", "check_with_model",

@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 
 from dynamics import calls, stepping
-from dynamics.cache import keep_numba_cache_true
+from dynamics.cache import function_cache, keep_numba_cache_true
 from dynamics.rows import outputs_batch
 from dynamics.system import BLOCK, _kernel_compiled, method_tableau
 
@@ -29,7 +29,8 @@ def name_of(fn) -> str:
 
 def compile_task_function(fn, args):
     """`fn` compiled with numba, bounds-checked (an index slip raises IndexError, never
-    reads another buffer) and cached on disk when its module allows, or `fn` itself when
+    reads another buffer) and cached on disk in the model cache (`dynamics.cache.
+    function_cache`, not beside the user's source), or `fn` itself when
     numba cannot type it; `args` is a sample call used to find out."""
     key = (fn, tuple(type(a) for a in args))
     if key in _COMPILED:
@@ -42,9 +43,10 @@ def compile_task_function(fn, args):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", numba.NumbaWarning)
-                jitted = numba.njit(cache=cache, boundscheck=True)(fn)
-                if cache:  # helpers in other files: numba's cache would not see their edits
-                    keep_numba_cache_true(jitted, fn)
+                jitted = numba.njit(boundscheck=True)(fn)
+                if cache:  # numba's files in the model cache, not the user's __pycache__
+                    jitted._cache = function_cache(fn)
+                    keep_numba_cache_true(jitted, fn)  # helpers' edits in other files
                 signature = tuple(_as_fused(numba.typeof(a)) for a in args)
                 jitted.compile(signature)  # the types the fused step calls it with
                 jitted.overloads[signature].entry_point(*args)

@@ -189,3 +189,29 @@ def start_values(plant, out, rng) -> tuple[np.ndarray, np.ndarray, bool]:
         for k, lo, hi in zip(plant.goal_names, plant.goal_low, plant.goal_high)
     ], dtype=np.float64)  # fmt: skip
     return x, g, True
+
+
+_ARGUMENTS = {"Rows": "x", "Actions": "a", "Goal": "goal"}
+"""The argument of a task function that each record type of `envs.names` is."""
+
+
+def missing_field(exc: Exception, p=None) -> str | None:
+    """A task function's misspelt name, in one line: which input (x, a, goal or p) lacks
+    it, a suggestion and the names it has; None for any other error. (Python names the
+    runtime's record class, e.g. 'Rows_97f252393812', which the user never wrote.)"""
+    found = re.search(r"has no attribute '(\w+)'", str(exc))
+    if not isinstance(exc, AttributeError) or not found:
+        return None
+    obj = getattr(exc, "obj", None)
+    fields = getattr(obj, "_fields", None)
+    if fields is not None:
+        which = _ARGUMENTS.get(type(obj).__name__.split("_")[0], type(obj).__name__)
+    elif p is not None and (obj is None or isinstance(obj, np.record)):
+        which, fields = "p", p.dtype.names  # (a numpy record's error names no object)
+    else:
+        return None
+    name = found[1]
+    return (
+        f"{which} has no name {name!r}.{did_you_mean(name, fields)} "
+        f"{which}'s names: {', '.join(fields) or 'none'}."
+    )

@@ -50,11 +50,18 @@ def sample_rows(plant, k: int, outputs: bool) -> tuple[np.ndarray, np.ndarray]:
     g = np.array([d[1] for d in drawn]).reshape(k, len(plant.goal_names))
     if system.n_c:
         x = system.project(x)
-    if outputs and len(plant.output_index):
-        y = system.outputs(0.0, x, np.zeros((k, system.n_u)))
-        cols = [y[name] for name in plant.task.outputs]
-        x = np.concatenate([x, np.stack(cols, axis=-1).reshape(k, -1)], axis=1)
-    return x, g
+    return (with_outputs(plant, x) if outputs else x), g
+
+
+def with_outputs(plant, x: np.ndarray) -> np.ndarray:
+    """States x (k, 2n) with the task's declared model outputs appended: the rows the task
+    functions see."""
+    if not len(plant.output_index):
+        return x
+    k, system = len(x), plant.system
+    y = system.outputs(0.0, x, np.zeros((k, system.n_u)))
+    cols = [y[name] for name in plant.task.outputs]
+    return np.concatenate([x, np.stack(cols, axis=-1).reshape(k, -1)], axis=1)
 
 
 def check_goal(plant, g: np.ndarray) -> None:

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from dynamics.checks import ALGORITHMS, INTEGRATORS, did_you_mean
+from dynamics.spec import ModelSpec
 
 from .checks import DeclarationError
 from .checks import declaration_error as _fail
@@ -52,6 +53,13 @@ def check_task(task, features, Goal, Term, LQRHints, Heuristic) -> None:
     name = task.name
     if not isinstance(name, str) or not name:
         raise DeclarationError(f"A task's `name` must be a non-empty string, got {name!r}.")
+    if isinstance(task.model, ModelSpec):
+        raise _fail(
+            name,
+            "model",
+            f"is the ModelSpec {task.model.name!r} itself; give the function that returns it "
+            "(model=my_spec, not my_spec()) or dynamics.Model(spec), so it is derived once.",
+        )
     _check_actuated(task)
     _check_max_input(task)
     _check_observation(task, features)
@@ -68,6 +76,14 @@ def check_task(task, features, Goal, Term, LQRHints, Heuristic) -> None:
     if not isinstance(task.lqr, LQRHints):
         raise _fail(name, "lqr", f"must be an LQRHints, got {task.lqr!r}.")
     _check_hints(name, task.lqr)
+    n_a = len(task.actuated)
+    if np.ndim(task.lqr.R) > 1 or np.size(task.lqr.R) not in (1, n_a):
+        raise _fail(
+            name,
+            "lqr.R",
+            f"must be one weight or one per action component ({n_a}: "
+            f"{', '.join(task.actuated)}), got {task.lqr.R!r}.",
+        )
     if task.heuristic is not None:
         h = task.heuristic
         if not isinstance(h, Heuristic) or ":" not in str(h.target):
@@ -141,9 +157,14 @@ def _check_terms(task, Term) -> None:
 
 def _check_goal_start_limits(task, Goal) -> None:
     name = task.name
+    if not isinstance(task.goal, (tuple, list)) or not all(isinstance(g, Goal) for g in task.goal):
+        raise _fail(
+            name,
+            "goal",
+            f"must be a tuple of Goal(name, unit, low, high), got {task.goal!r:.80} (a goal "
+            "is declared with its range, not named: envs.Goal('x*', 'm', -1.0, 1.0)).",
+        )
     goals = [g.name for g in task.goal]
-    if not all(isinstance(g, Goal) for g in task.goal):
-        raise _fail(name, "goal", f"must be a tuple of Goal, got {task.goal!r}.")
     if len(set(goals)) != len(goals):
         raise _fail(name, "goal", f"repeats a component: {goals}.")
     for g in task.goal:
@@ -165,6 +186,8 @@ def _check_goal_start_limits(task, Goal) -> None:
     op = task.operating_point
     if op is not None and not (isinstance(op, Mapping) or callable(op)):
         raise _fail(name, "operating_point", f"must be a dict or a function, got {op!r}.")
+    for k, v in dict(op).items() if isinstance(op, Mapping) else ():
+        _number(name, f"operating_point[{k!r}]", v)
 
 
 def _check_learning(task) -> None:

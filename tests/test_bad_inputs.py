@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import importlib.util
 import types
 import warnings
 
@@ -469,3 +470,385 @@ def test_one_table_of_algorithms_names_what_agents_train():
     assert INTEGRATORS == tuple(METHODS)
     with pytest.raises(DeclarationError, match="algo"):
         dataclasses.replace(BASE, algo="a2c")
+
+
+# ---- 7. no code from a declaration: text in any field sympy would parse is refused ---------
+def _spec_with(planted, **fields):
+    """A one-coordinate spec whose `fields` carry text that, were it evaluated, would write
+    the file `planted`."""
+    q = me.dynamicsymbols("q")
+    m, inertia = sp.symbols("m I")
+    params = {m: Param(1.0, "kg"), inertia: Param(1.0, "kg m^2")}
+    code = f"__import__('pathlib').Path({str(planted)!r}).write_text('ran') and I"
+    base = dict(kinetic=m * q.diff() ** 2 / 2, potential=0 * q, parameters=params)
+    base.update({k: v(code, q) for k, v in fields.items()})
+    return ModelSpec("planted", (q,), **base)
+
+
+TEXT_FIELDS = {
+    "a body's principal moment": {"bodies": lambda c, q: {"b": (c, "I", "I")}},
+    "a body's tensor entry": {"bodies": lambda c, q: {"b": ((c, 0, 0), (0, 1, 0), (0, 0, 1))}},
+    "the kinetic energy": {"kinetic": lambda c, q: c},
+    "a force": {"forces": lambda c, q: {q: c}},
+    "a constraint": {"constraints": lambda c, q: (c,)},
+    "an output": {"outputs": lambda c, q: {"y": c}},
+    "a condition": {"conditions": lambda c, q: {"I > 0": c}},
+    "an input": {"inputs": lambda c, q: (c,)},
+    "a coordinate": {"kinetic": lambda c, q: q.diff() ** 2},  # (below: coordinates as text)
+}
+
+
+@pytest.mark.parametrize("case", TEXT_FIELDS)
+def test_text_in_a_declaration_is_refused_before_sympy_sees_it(case, tmp_path):
+    planted = tmp_path / "planted"
+    fields = TEXT_FIELDS[case]
+    if case == "a coordinate":
+        code = f"__import__('pathlib').Path({str(planted)!r}).write_text('ran')"
+        with pytest.raises(TypeError, match="coordinates is text"):
+            ModelSpec("planted", (code,), 0, 0, {})
+    else:
+        with pytest.raises(TypeError, match="is text") as info:
+            _spec_with(planted, **fields)
+        assert "parse_expression" in str(info.value)
+    assert not planted.exists()  # the planted side effect never ran
+
+
+def test_an_energy_that_is_no_expression_is_named():
+    with pytest.raises(TypeError, match="kinetic must be a sympy expression.*got list"):
+        _spec_with("unused", kinetic=lambda c, q: [q.diff() ** 2])
+
+
+# ---- 8. a run's record is not rewritten by a resume with other settings ---------------------
+BEAD = "Lagrange/BeadOnRod-v1"
+RESUMES = {  # (train's arguments on resuming, the words of the refusal)
+    "another seed": ({"seed": 3}, ["seed: 0 in the run, 3 given"]),
+    "another n_envs": ({"n_envs": 2}, ["n_envs: 8 in the run, 2 given"]),
+    "another hyperparameters file": (
+        {"hyperparams": "gamma.yml"},
+        ["hyperparams[gamma]", "0.5 given", "--hyperparams"],
+    ),
+}
+
+
+def _recorded_run(run_dir):
+    """A run directory as agents.train leaves it after a checkpoint (seed 0, 8 envs, the
+    packaged hyperparameters); the checkpoint's content is never read by the refusal."""
+    import yaml
+
+    from agents.learning.hparams import load_hyperparams
+
+    config = {"env_id": BEAD, "algo": "ppo", "seed": 0, "n_timesteps": 512, "n_envs": 8}
+    config["hyperparams"] = load_hyperparams("ppo", BEAD)
+    (run_dir / "checkpoints").mkdir(parents=True)
+    (run_dir / "checkpoints" / "rl_model_256_steps.zip").write_bytes(b"")
+    (run_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    return (run_dir / "config.yml").read_text()
+
+
+@pytest.mark.parametrize("case", RESUMES)
+def test_a_resume_with_another_defining_option_is_refused_unwritten(case, tmp_path):
+    from agents.train import train
+
+    before = _recorded_run(tmp_path / "run")
+    (tmp_path / "gamma.yml").write_text(f"{BEAD}:\n  gamma: 0.5\n")
+    given, words = RESUMES[case]
+    if "hyperparams" in given:
+        given = {"hyperparams": tmp_path / given["hyperparams"]}
+    with pytest.raises(UserError) as info:
+        train(BEAD, timesteps=512, run_dir=tmp_path / "run", resume=True, **given)
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert (tmp_path / "run" / "config.yml").read_text() == before
+
+
+def test_a_resume_with_the_run_s_own_settings_passes_the_check(tmp_path):
+    from agents.learning.hparams import load_hyperparams
+    from agents.learning.rundir import check_resume_defines
+
+    _recorded_run(tmp_path)
+    hp = load_hyperparams("ppo", BEAD)
+    check_resume_defines(tmp_path, {"seed": 0, "n_envs": 8, "hyperparams": hp, "algo": "ppo"})
+
+
+@pytest.mark.parametrize("command", ["train", "check", "evaluate", "lqr", "plan"])
+def test_every_seed_keeps_to_numpy_s_limit(command, capsys):
+    module = importlib.import_module(f"agents.{command}")
+    with pytest.raises(SystemExit) as info:
+        module.main([BEAD, "--seed", str(2**32)])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "seed from 0 to 2**32 - 1" in err and "Traceback" not in err
+
+
+# ---- 9. commands that say what is wrong, before any work -----------------------------------
+def _learning_bench():
+    spec = importlib.util.spec_from_file_location(
+        "learning_bench", dynamics.__path__[0] + "/../benchmarks/learning.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _results(tmp_path, name, text=None, **row):
+    """A results.csv of the learning benchmark (one BeadOnRod run, `row` changed)."""
+    base = {"system": BEAD, "algo": "ppo", "seed": 0, "success": 0.9, "n": 20, "low": 0.7,
+            "high": 0.97, "to80_s": "", "to80_steps": "", "trained_steps": 100,
+            "train_s": 5.0, "lqr_share": "", "note": "", "budget_s": 60.0}  # fmt: skip
+    base.update(row)
+    path = tmp_path / name
+    if text is None:
+        text = ",".join(base) + "\n" + ",".join(str(v) for v in base.values()) + "\n"
+    path.write_text(text)
+    return str(path)
+
+
+LEARNING_COMMANDS = {  # argv (tmp_path -> list), words of the one-line error
+    "unknown env id": (lambda d: ["Lagrange/BeadOnRd-v1"], "Did you mean 'Lagrange/BeadOnRod-v1'"),
+    "a negative seed": (lambda d: [BEAD, "--seeds=-1"], "expected an integer >= 0, got -1"),
+    "no learner": (lambda d: [BEAD, "--algos", ""], "--algos names nothing"),
+    "a misspelt learner": (lambda d: [BEAD, "--algos", "ppo,sacc"], "Did you mean 'sac'?"),
+    "a learner twice": (lambda d: [BEAD, "--algos", "ppo,ppo"], "--algos names ppo twice"),
+    "an env twice": (lambda d: [BEAD, BEAD], "given twice"),
+    "--from the same file twice": (
+        lambda d: ["--from", _results(d, "a.csv"), _results(d, "a.csv")],
+        "is given twice",
+    ),
+    "--from one run in two files": (
+        lambda d: ["--from", _results(d, "a.csv"), _results(d, "b.csv")],
+        "give each run once",
+    ),
+    "--from a header alone": (
+        lambda d: ["--from", _results(d, "h.csv", text="system,algo\n")],
+        "lacks the column(s) seed",
+    ),
+    "--from a file without runs": (
+        lambda d: ["--from", _results(d, "h.csv", text=",".join(_learning_bench().FIELDS))],
+        "holds no runs",
+    ),
+    "--from a missing file": (lambda d: ["--from", str(d / "none.csv")], "is not a file"),
+    "--from a value that is no number": (
+        lambda d: ["--from", _results(d, "x.csv", success="lots")],
+        "column 'success' must be a number, got 'lots'",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", LEARNING_COMMANDS)
+def test_the_learning_benchmark_refuses_in_one_line_before_work(case, capsys, tmp_path):
+    argv, words = LEARNING_COMMANDS[case]
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:
+        _learning_bench().main([*argv(tmp_path), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and words in err, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_runs_read_back_are_labelled_by_their_own_budget(tmp_path, capsys):
+    bench = _learning_bench()
+    assert bench.main(["--from", _results(tmp_path, "a.csv"), "--out", str(tmp_path)]) == 0
+    assert "not in 60 s" in (tmp_path / "results.md").read_text()  # not the default 600 s
+
+
+def test_a_hyperparameters_file_naming_only_a_misspelt_env_is_refused(tmp_path):
+    from agents.learning.hparams import load_hyperparams
+
+    path = tmp_path / "hp.yml"
+    path.write_text("Lagrange/BeadOnRd-v1:\n  gamma: 0.9\n")
+    with pytest.raises(UserError, match="Did you mean 'Lagrange/BeadOnRod-v1'"):
+        load_hyperparams("ppo", BEAD, path)
+
+
+def test_agents_check_refuses_an_env_named_twice(capsys):
+    from agents import check
+
+    with pytest.raises(SystemExit) as info:
+        check.main([BEAD, BEAD])
+    assert info.value.code == 2 and "given twice" in capsys.readouterr().err
+
+
+# ---- 10. no traceback where the docs promise one line --------------------------------------
+def _params_file(tmp_path, text):
+    path = tmp_path / "params.yml"
+    path.write_text(text)
+    return str(path)
+
+
+AGENT_COMMANDS = {  # (command, argv (tmp_path -> list), the words of the one-line error)
+    "train: a negative mass": (
+        "train",
+        lambda d: [BEAD, "--params", _params_file(d, "m: -1.0\n")],
+        "Parameter 'm' of bead_on_driven_rod must be positive, got -1.0",
+    ),
+    "check: a negative mass": (
+        "check",
+        lambda d: [BEAD, "--params", _params_file(d, "m: -1.0\n")],
+        "Parameter 'm' of bead_on_driven_rod must be positive, got -1.0",
+    ),
+    "train: a 400-digit integer": (
+        "train",
+        lambda d: [BEAD, "--params", _params_file(d, "m: " + "9" * 400 + "\n")],
+        "m must be a finite number, got an integer of 400 digits",
+    ),
+    "check: --out a file": ("check", lambda d: [BEAD, "--out", __file__], "is a file, not a"),
+}
+
+
+@pytest.mark.parametrize("case", AGENT_COMMANDS)
+def test_agents_commands_refuse_in_one_line_before_work(case, capsys, tmp_path):
+    command, argv, words = AGENT_COMMANDS[case]
+    module = importlib.import_module(f"agents.{command}")
+    more = ["--run-dir", str(tmp_path / "run")] if command == "train" else ["--episodes", "1"]
+    try:
+        code = module.main([*argv(tmp_path), *more])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and "Traceback" not in err, err
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_lqr_shaping_is_defined_at_gamma_one():
+    """gamma 1 is allowed by the hyperparameter rules: the potential's range is then the
+    undiscounted sum over the horizon, the limit of (1 - gamma^H) / (1 - gamma)."""
+    from agents.learning.shaping import discounted_steps
+
+    assert discounted_steps(1.0, 200) == 200.0
+    # continuous at 1: at 1 - 1e-12 the quotient is 200 (1 - 1e-10); its numerator, about
+    # 2e-10, carries a round-off of about 1e-16, a relative 1e-6 at most
+    assert discounted_steps(1.0 - 1e-12, 200) == pytest.approx(200.0, rel=1e-6)
+    assert discounted_steps(0.5, 3) == 1.75
+
+
+# ---- 11. leftovers of earlier rounds: each named in one line --------------------------------
+def _plan_with_guess(guess):
+    from agents.control.ilqr import plan
+
+    env = envs.LagrangianEnv(BASE)
+    env.reset(seed=0)
+    return plan(env, horizon=0.2, guess=guess, strict=False, max_iterations=1)
+
+
+LEFTOVERS = {
+    "a plan's guess of the wrong shape": (
+        lambda: _plan_with_guess(np.zeros((5, 3))),
+        ValueError,
+        ["plan: guess must be actions of shape (N, 1)", "got shape (5, 3)"],
+    ),
+    "a plan's guess with NaN": (
+        lambda: _plan_with_guess(np.full((5, 1), np.nan)),
+        ValueError,
+        ["plan: guess must be finite"],
+    ),
+    "a ragged state at a vector reset": (
+        lambda: _vec_reset(ARM, 2).reset(options={"state": [[0.1, 0.0, 0.0, 0.0], [0.2]]}),
+        ValueError,
+        ["options['state']", "ragged rows"],
+    ),
+    "LQRHints.R of the wrong length": (
+        lambda: dataclasses.replace(BASE, lqr=envs.LQRHints(R=(1.0, 2.0))),
+        DeclarationError,
+        ["`lqr.R`", "one per action component (1: F)", "(1.0, 2.0)"],
+    ),
+    "NaN in the operating point": (
+        lambda: dataclasses.replace(BASE, operating_point={"theta": float("nan")}),
+        DeclarationError,
+        ["`operating_point['theta']`", "must be finite"],
+    ),
+    "a goal given as a name": (
+        lambda: dataclasses.replace(BASE, goal=("x*",)),
+        DeclarationError,
+        ["`goal`", "tuple of Goal", "envs.Goal('x*'"],
+    ),
+    "a ModelSpec where its factory is expected": (
+        lambda: dataclasses.replace(BASE, model=cart_pole.TASK.model()),
+        DeclarationError,
+        ["`model`", "ModelSpec 'cart_pole' itself", "not my_spec()"],
+    ),
+    "a kinetic energy given as a list": (
+        lambda: _spec_with("unused", kinetic=lambda c, q: [q.diff() ** 2]),
+        TypeError,
+        ["kinetic must be a sympy expression", "got list"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", LEFTOVERS)
+def test_earlier_leftovers_are_named_in_one_line(case):
+    make, error, words = LEFTOVERS[case]
+    with pytest.raises(error) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert "\n" not in str(info.value)
+
+
+def test_lqr_warns_at_an_operating_point_that_is_no_equilibrium():
+    from agents.control.lqr_policy import LQRPolicy
+
+    env = envs.LagrangianEnv(dataclasses.replace(BASE, operating_point={"x_dot": 1.0}))
+    env.reset(seed=0)
+    with pytest.warns(RuntimeWarning, match="not an equilibrium: dx/dt = 1 there"):
+        LQRPolicy(env).design()
+    with warnings.catch_warnings():  # the task's own (an equilibrium) designs in silence
+        warnings.simplefilter("error", RuntimeWarning)
+        LQRPolicy(envs.LagrangianEnv(BASE)).design()
+
+
+# ---- 12. a user's own system: slips named in the user's words ------------------------------
+def _term_typo(x, a, goal, p):
+    return -0.1 * x.x_dott**2  # x_dot misspelt
+
+
+def _term_param_typo(x, a, goal, p):
+    return -0.1 * x.x_dot**2 * p.m_pol  # m_pole misspelt
+
+
+def _with_term(fn):
+    term = envs.Term("speed", -10.0, 0.0, "", fn)
+    return envs.LagrangianEnv(dataclasses.replace(BASE, terms=(*BASE.terms, term)))
+
+
+def _with_region(**region):
+    hints = envs.LQRHints(region={"x": 0.5, "theta": 0.1, "x_dot": 0.1, "theta_dot": 0.1, **region})
+    return envs.LagrangianEnv(dataclasses.replace(BASE, lqr=hints))
+
+
+OWN_SYSTEM = {
+    "a reward term's misspelt state": (
+        lambda: _with_term(_term_typo),
+        ["term 'speed'", "x has no name 'x_dott'", "Did you mean 'x_dot'?",
+         "x's names: x, theta, x_dot, theta_dot"],
+    ),  # fmt: skip
+    "a reward term's misspelt parameter": (
+        lambda: _with_term(_term_param_typo),
+        ["p has no name 'm_pol'", "Did you mean 'm_pole'?", "p's names: m_cart, m_pole"],
+    ),
+    "an operating point naming a misspelt goal": (
+        lambda: envs.LagrangianEnv(
+            dataclasses.replace(
+                BASE, goal=(envs.Goal("x_star", "m", -1, 1),), operating_point={"x": "x_sta"}
+            )
+        ),
+        ["'x_sta'", "Did you mean 'x_star'?", "Goals: x_star", "parameters: m_cart"],
+    ),
+    "an LQR region reaching into the failure set": (
+        lambda: _with_region(x=3.0),
+        ["`lqr.region['x']` = 3", "reaches into the failure set", "x = 3", "failure"],
+    ),
+    "an LQR region reaching beyond the limits": (
+        lambda: _with_region(x_dot=12.0),
+        ["`lqr.region['x_dot']` = 12", "beyond `limits['x_dot']` = 10"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", OWN_SYSTEM)
+def test_a_user_s_system_slip_is_named_with_the_names_it_could_mean(case):
+    make, words = OWN_SYSTEM[case]
+    with pytest.raises(DeclarationError) as info:
+        make()
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    assert "Rows_" not in str(info.value) and "\n" not in str(info.value)

@@ -65,7 +65,9 @@ def test_runs_over_several_seeds_get_a_row_each_and_one_across_them(tmp_path):
     assert bench.read_rows([str(tmp_path / "all" / "results.csv")]) == rows
 
 
-def test_an_unknown_learner_is_refused():
+def test_an_unknown_learner_is_refused(capsys):
     bench = _benchmark()
-    with pytest.raises(ValueError, match="Unknown algorithm 'ppp'. Did you mean 'ppo'"):
+    with pytest.raises(SystemExit) as info:
         bench.main(["Lagrange/BeadOnRod-v1", "--algos", "ppp"])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "Unknown algorithm 'ppp'. Did you mean 'ppo'" in err

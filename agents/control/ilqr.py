@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynamics import wrap
+from dynamics.checks import real_array
 
 from ..common import lagrange_env
 from ..values import Bad, integer, real, short
@@ -376,7 +377,15 @@ def _full(M, index, n):
 def _initial_actions(guess, steps: int, n_a: int) -> np.ndarray:
     if guess is None:
         return np.zeros((steps, n_a))
-    a = np.asarray(guess.actions if isinstance(guess, Plan) else guess, dtype=np.float64)
+    a = real_array(guess.actions if isinstance(guess, Plan) else guess, "plan: guess")
+    if a.ndim != 2 or a.shape[1] != n_a or len(a) < 1:
+        raise ValueError(
+            f"plan: guess must be actions of shape (N, {n_a}) (N steps of the env's {n_a} "
+            f"normalised inputs) or a Plan, got shape {a.shape}."
+        )
+    if not np.isfinite(a).all():
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        raise ValueError(f"plan: guess must be finite, got {a[bad]} at {bad}.")
     if len(a) == steps:
         return a.copy()
     s, sg = (np.arange(steps) + 0.5) / steps, (np.arange(len(a)) + 0.5) / len(a)

@@ -10,6 +10,7 @@ trained model. The command line is `python -m agents.lqr` (agents/lqr.py).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -106,6 +107,27 @@ class LQRDesign:
         return np.log(self.closed_loop_eigenvalues.astype(complex)) / self.dt
 
 
+def warn_unless_equilibrium(system, lin: LinearModel, task: str) -> None:
+    """RuntimeWarning naming the kept state whose rate is not zero at the operating point:
+    LQR there regulates towards a state the system cannot rest in (a cart's x at a speed of
+    1 m/s), and its success is then no statement about the task. The tolerance is 1e-6 of
+    the size of the linear terms at that point (round-off of a true equilibrium is ~1e-15)."""
+    f = system.state_derivative(0.0, lin.x0, lin.u0)[lin.index]
+    scale = 1.0 + np.abs(lin.A) @ np.abs(lin.x0[lin.index]) + np.abs(lin.B) @ np.abs(lin.u0)
+    off = np.abs(f) > 1e-6 * scale
+    if off.any():
+        i = int(np.argmax(np.abs(f) / scale))
+        warnings.warn(
+            f"LQR on task {task!r}: the operating point is not an equilibrium: "
+            f"d{lin.states[i]}/dt = {f[i]:.6g} there, not 0 (residual of the kept states "
+            f"{dict(zip(lin.states, np.round(f, 9).tolist()))}); the design regulates towards "
+            "a state the system cannot rest in. Give an equilibrium in `operating_point`, or "
+            f"leave {lin.states[i]!r} out of LQRHints.states where it may drift.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
 def design(lin: LinearModel, dt: float, Q, R, rtol: float = 1e-9) -> LQRDesign:
     """Controllability check, ZOH discretisation at dt and the discrete LQR gain."""
     c = require_controllable(lin, rtol)
@@ -187,6 +209,7 @@ class LQRPolicy:
                     "ones, so no exact cut of the full linearisation exists; reduce it on the "
                     "constraint manifold instead (the task's heuristic baseline, if declared)."
                 ) from exc
+            warn_unless_equilibrium(self.system, lin, self.env.task.name)
             lin = LinearModel(
                 lin.A, lin.B @ self._S, x0, u0, lin.states, _action_names(self), lin.index
             )

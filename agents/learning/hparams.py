@@ -28,7 +28,7 @@ import yaml
 
 from dynamics.checks import ALGORITHMS, unknown
 
-from ..common import UserError, task_of
+from ..common import UserError, check_file_applies, task_of
 from ..values import (
     Bad,
     choice,
@@ -316,6 +316,7 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     hp.update(check_entries(packaged.get(env_id, {}), f"{packaged_path} ({env_id})"))
     if path is not None:
         user = read_table(Path(path))
+        check_file_applies(user, path, env_id)
         for entry in ("default", env_id):
             hp.update(check_entries(user.get(entry, {}), f"{path} ({entry})"))
     return hp

@@ -117,15 +117,18 @@ def _holds_a_run(run_dir: Path) -> bool:
 
 
 def prepare_run_dir(
-    run_dir: Path, env_id: str, algo: str, resume: bool, overwrite: bool
+    run_dir: Path, env_id: str, algo: str, resume: bool, overwrite: bool, config=None
 ) -> tuple[int, Path] | None:
     """The checkpoint to resume from, or None for a fresh run (after removing an earlier
-    run's files when `overwrite`). An earlier run is never replaced unasked."""
+    run's files when `overwrite`). An earlier run is never replaced unasked, nor resumed
+    with other settings than its `config.yml` records (`config`: the ones asked for now)."""
     if resume and overwrite:
         raise UserError("Give --resume (continue the run) or --overwrite (replace it), not both.")
     found = latest_checkpoint(run_dir / "checkpoints")
     if resume and found is not None:
         _check_same_run(run_dir, env_id, algo)
+        if config is not None:
+            check_resume_defines(run_dir, config)
         return found
     if _holds_a_run(run_dir) and not overwrite:
         if resume:
@@ -165,6 +168,36 @@ def check_resume_randomize(run_dir: Path, setting: dict | None) -> None:
             "--resume continues a run with its own settings (leave --randomize out), or "
             "start another run (--run-dir) with the new ones."
         )
+
+
+DEFINING = ("seed", "n_envs", "hyperparams")
+"""What defines a run besides its env and algorithm (`--randomize` and `--params` have checks
+of their own); the step count may grow: resuming to a larger --timesteps continues a run."""
+
+
+def check_resume_defines(run_dir: Path, config: dict) -> None:
+    """UserError naming each setting of `config` that defines the run (`DEFINING`, the
+    hyperparameters one by one, whichever file gave them) and differs from the run's
+    config.yml: a resumed run goes on with what it began with, and its record says so."""
+    then, now = _defining(read_config(run_dir)), _defining(config)
+    differ = [
+        f"{k}: {then.get(k)!r} in the run, {now.get(k)!r} given"
+        for k in sorted((set(then) | set(now)) - {"hyperparams[randomize]"})  # its own check
+        if then.get(k) != now.get(k)
+    ]
+    if differ:
+        raise UserError(
+            f"{run_dir} holds a run begun with other settings ({'; '.join(differ)}); --resume "
+            "continues a run with its own (give the run's --seed, --n-envs and --hyperparams), "
+            "or start another run (--run-dir) with the new ones."
+        )
+
+
+def _defining(config: dict) -> dict:
+    """`config`'s DEFINING settings as config.yml stores them, the hyperparameters one by one."""
+    flat = yaml.safe_load(yaml.safe_dump({k: config.get(k) for k in DEFINING}))
+    flat.update((f"hyperparams[{k}]", v) for k, v in (flat.pop("hyperparams") or {}).items())
+    return flat
 
 
 def _check_same_run(run_dir: Path, env_id: str, algo: str) -> None:

@@ -56,7 +56,7 @@ class LQRPotential:
             costs.append(float(self.cost(obs[None])[0]))
         self.v_start = float(np.median(costs)) or 1.0
         self.env = base
-        self.amplitude = weight * (1.0 - gamma**horizon) / (1.0 - gamma)
+        self.amplitude = weight * discounted_steps(gamma, horizon)
 
     def cost(self, obs: np.ndarray) -> np.ndarray:
         """LQR's cost-to-go of a batch of observations about their operating points."""
@@ -89,6 +89,12 @@ class LQRPotential:
             d = np.sqrt(np.maximum(v, 0.0) / self.v_start)  # V >= 0 up to round-off
             ratio = np.where(np.isinf(v), 1.0, d / (d + 1.0))
         return -self.amplitude * ratio
+
+
+def discounted_steps(gamma: float, horizon: int) -> float:
+    """sum of gamma^k for k < horizon: (1 - gamma^H) / (1 - gamma), and H at gamma = 1
+    (the undiscounted limit, which that quotient leaves undefined)."""
+    return float(horizon) if gamma == 1.0 else (1.0 - gamma**horizon) / (1.0 - gamma)
 
 
 def lqr_potential(env_id: str, weight: float, gamma: float, horizon: int):

@@ -222,6 +222,7 @@ def test_predict_is_batched_and_saturates():
     assert one.dtype == np.float32 and abs(one[0]) == 1.0  # 0.3 rad is far: saturated
 
 
+@pytest.mark.filterwarnings("ignore:LQR on task:RuntimeWarning")  # arbitrary points, no equilibria
 @pytest.mark.parametrize("goals", ["shared", "each its own"])
 def test_a_batch_acts_and_costs_as_each_row_alone(goals):
     """Rows sharing an operating point are costed and acted on in one stacked product,
