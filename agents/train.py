@@ -41,6 +41,7 @@ from .common import (
     write_atomic,
 )
 from .learning import budget as budgets
+from .learning import confirm as confirmation
 from .learning import randomization
 from .learning.callbacks import (
     AtomicCheckpoint,
@@ -218,8 +219,15 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
         per_env = -(-o["eval_episodes"] // eval_envs)  # the episodes an eval env runs
         horizon = episode_steps(env_id, task_of(env_id))
-        clock = budgets.Clock(o["budget"] or float("inf"), per_env * horizon, eval_envs)
-        solved = budgets.SolvedStop(run_dir, clock) if o["budget"] else None
+        clock = budgets.Clock(
+            o["budget"] or float("inf"), per_env * horizon, eval_envs, o["eval_episodes"]
+        )
+        solved = None
+        if o["budget"]:  # a candidate that met the rule is confirmed on fresh starts
+            def check(model, attempt):
+                return confirmation.confirm(model, env_id, hp, attempt)
+
+            solved = budgets.SolvedStop(run_dir, clock, confirm=check)
         evaluation = budgets.BudgetedEval(  # on the step schedule; in time for a budget
             eval_env,
             o["eval_freq"],

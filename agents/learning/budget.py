@@ -6,10 +6,13 @@ evaluation during training (`--eval-episodes`, 20 in this mode, on starts the tr
 never sees, every `budget_eval_freq` steps) reaches at least 80 % success at three
 evaluations in a row (two let agents through whose success on fresh starts was 65-75 %:
 with 20 episodes each, a 70 % agent passes two in a row at 6 % of its evaluation pairs, and
-runs make dozens; three, at 1.3 %, cost an agent at 95 % one evaluation more). Every evaluation
-that beats the best so far (success rate, then mean return) saves the model, its
+runs make dozens; three, at 1.3 %, cost an agent at 95 % one evaluation more), and the model
+that met it is then confirmed on fresh starts (`agents.learning.confirm`: at least 92 % of
+200; one that is not confirmed does not stop training). Every evaluation
+that beats the best so far (success rate, then mean return; a candidate measured on a
+confirmation's episodes ranks above any single evaluation) saves the model, its
 normalisation statistics and config.yml into `best/` of the run directory, each file
-atomically; a run that meets the rule keeps the model that met it (the last evaluated);
+atomically; a run that is solved keeps the confirmed model;
 one that runs out of time evaluates the final model too (unless its weights just were)
 and keeps the best one. The run's model.zip is the kept one (`best/` holds it too), and
 `solved.json` records the seconds and env steps to success.
@@ -55,11 +58,15 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from ..common import atomic_path, write_atomic
+from . import confirm as confirmation
 from .callbacks import ScheduledEval
 
 SOLVED_RATE = 0.8
 SOLVED_TIMES = 3
-RULE = f">= {SOLVED_RATE:.0%} success at {SOLVED_TIMES} evaluations in a row"
+RULE = (
+    f">= {SOLVED_RATE:.0%} success at {SOLVED_TIMES} evaluations in a row, then >= "
+    f"{confirmation.RATE:.0%} of {confirmation.EPISODES} fresh starts"
+)
 """The stop rule, in words (the command lines' help)."""
 BUDGET_STEPS_CAP = 10**9
 """The step count a budget-only run is given (it stops on time or success first)."""
@@ -124,17 +131,21 @@ class Clock(BaseCallback):
 
     eval_steps: the most vector steps one evaluation can take (its episodes per eval env x
     the time limit): a measured evaluation's time per step is scaled to it, since the next
-    one may run its episodes longer. eval_envs: the envs an evaluation steps at once."""
+    one may run its episodes longer. eval_envs: the envs an evaluation steps at once;
+    eval_episodes: the episodes it runs."""
 
-    def __init__(self, seconds: float, eval_steps: int = 0, eval_envs: int = 1):
+    def __init__(self, seconds: float, eval_steps: int = 0, eval_envs: int = 1,
+                 eval_episodes: int = 1):  # fmt: skip
         super().__init__()
         self.seconds = float(seconds)
         self.eval_steps, self.eval_envs = int(eval_steps), int(eval_envs)
+        self.eval_episodes = max(int(eval_episodes), 1)
         self.start: float | None = None
         self.ran_out = False
         self.eval_step_s: float | None = None  # an evaluation's seconds per vector step
         self.records_s = RECORDS_S  # the last evaluation's records and saves took
         self.update_s = 0.0  # the longest update phase (gradient steps between rollouts)
+        self.confirm_s: float | None = None  # the longest confirmation
         self.updates = 0  # update phases so far: the weights change only there
         self._aside = 0.0  # seconds in evaluations and updates, not in training steps
         self._stepping = [0.0, 0]  # seconds between checks (less the above), and how many
@@ -202,6 +213,23 @@ class Clock(BaseCallback):
         steps = max(max(lengths, default=1), math.ceil(sum(lengths) / self.eval_envs), 1)
         self.eval_step_s = max(seconds - records_s, 0.0) / steps
 
+    def confirmed(self, seconds: float) -> None:
+        """A confirmation (agents.learning.confirm) took `seconds` (0: none ran)."""
+        if seconds > 0:
+            self._aside += seconds
+            self.confirm_s = max(self.confirm_s or 0.0, seconds)
+
+    def may_confirm(self, episodes: int) -> bool:
+        """Whether a confirmation of `episodes` fresh episodes ends in time for the saves:
+        its time is the longest measured, until one is, an evaluation's time per episode
+        times `episodes` (on the safe side: a confirmation steps them all at once)."""
+        if self.confirm_s is not None:
+            need = self.confirm_s
+        else:
+            per_episode = (self.evaluation_s() - self.records_s) / self.eval_episodes
+            need = per_episode * episodes
+        return self.left() > need + self.saves_s()
+
     def _on_rollout_end(self) -> None:
         self._rollout_end = time.perf_counter()
 
@@ -254,8 +282,10 @@ class BudgetedEval(ScheduledEval):
         start, self.of_updates = time.perf_counter(), self.clock.updates
         go_on = EvalCallback._on_step(self)
         records = getattr(self.callback, "seconds", 0.0)
+        confirm_s = getattr(self.callback, "confirm_s", 0.0)
         lengths = self.evaluations_length[-1] if self.evaluations_length else ()
-        self.clock.evaluated(time.perf_counter() - start, records, lengths)
+        self.clock.evaluated(time.perf_counter() - start - confirm_s, records, lengths)
+        self.clock.confirmed(confirm_s)
         return go_on
 
 
@@ -266,7 +296,8 @@ class AfterEvals(BaseCallback):
     def __init__(self, *callbacks: BaseCallback):
         super().__init__()
         self.callbacks = callbacks
-        self.seconds = 0.0  # the last call's
+        self.seconds = 0.0  # the last call's, its confirmation left out
+        self.confirm_s = 0.0  # the last call's confirmation (agents.learning.confirm)
 
     def _init_callback(self) -> None:
         for c in self.callbacks:
@@ -276,52 +307,91 @@ class AfterEvals(BaseCallback):
     def _on_step(self) -> bool:
         start = time.perf_counter()
         go_on = all([c.on_step() for c in self.callbacks])
-        self.seconds = time.perf_counter() - start  # read by BudgetedEval
+        self.confirm_s = sum(getattr(c, "confirm_s", 0.0) for c in self.callbacks)
+        self.seconds = time.perf_counter() - start - self.confirm_s  # read by BudgetedEval
         return go_on
 
 
 class SolvedStop(BaseCallback):
-    """After each evaluation: keep the best model in `run_dir/best`, and stop training once
-    the success rate has been at least `rate` at `times` evaluations in a row (recording
-    the time and steps in solved.json), keeping the model that met the rule: the best
-    single evaluation of a run is its luckiest (the Segway's seed 0 kept a model that
-    scored 100 % once between evaluations of 35-55 %, 70 % on 40 fresh starts, where the
-    model that met the rule at 85 %, 85 %, 85 % scored 75 %). `clock` gives the training's
-    elapsed seconds."""
+    """After each evaluation: keep the best model in `run_dir/best`; once the success rate
+    has been at least `rate` at `times` evaluations in a row, the evaluated model is a
+    candidate, and `confirm(model, attempt)` (agents.learning.confirm) scores it on fresh
+    starts: a confirmed candidate stops training (solved.json records the time, the steps
+    and the confirmation) and is the model kept; one that is not confirmed does not stop
+    it (each later evaluation at >= `rate` makes a new candidate while the streak holds).
+    Every confirmation is recorded in confirmations.json. Without `confirm` the streak
+    alone stops training (the rule before 2026-11-27).
 
-    def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None):
+    The model kept is never simply the best single evaluation, the luckiest of a run (the
+    Segway's seed 0 kept a model that scored 100 % once between evaluations of 35-55 %, 70 %
+    on 40 fresh starts): a candidate measured on the confirmation's many episodes ranks
+    above every model measured on one evaluation's, and among those by its confirmed rate.
+    `clock` gives the training's elapsed seconds (and, with `confirm`, whether a
+    confirmation still fits the budget)."""
+
+    def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None, confirm=None,
+                 episodes: int | None = None):  # fmt: skip
         super().__init__()
         self.run_dir, self.clock = Path(run_dir), clock
         self.rate = float(SOLVED_RATE if rate is None else rate)
         self.times = int(SOLVED_TIMES if times is None else times)
+        self.confirm = confirm  # (model, attempt) -> a record with "passed" (confirm.confirm)
+        self.episodes = int(confirmation.EPISODES if episodes is None else episodes)
         self.streak = 0
-        self.best: tuple[float, float] | None = None
+        self.best: tuple[float, float, float] | None = None  # (confirmed?, rate, return)
         self.solved: dict | None = None
+        self.confirmations: list[dict] = []
+        self.confirm_s = 0.0  # the last call's confirmation seconds (read by AfterEvals)
 
     def _init_callback(self) -> None:
         if self.model.num_timesteps == 0:  # a fresh run: nothing of an earlier one counts
             (self.run_dir / "solved.json").unlink(missing_ok=True)
+            (self.run_dir / "confirmations.json").unlink(missing_ok=True)
             shutil.rmtree(self.run_dir / "best", ignore_errors=True)
 
     def _on_step(self) -> bool:
         parent = self.parent
         successes = parent._is_success_buffer
         rate = float(np.mean(successes)) if successes else 0.0
-        score = (rate, float(np.mean(parent.evaluations_results[-1])))
+        mean = float(np.mean(parent.evaluations_results[-1]))
         self.streak = self.streak + 1 if rate >= self.rate else 0
-        if self.best is None or score > self.best or self.streak >= self.times:
-            self.best = score
-            self.save_best()
-        if self.streak >= self.times:
+        self.confirm_s = 0.0
+        record = None
+        if self.streak >= self.times and self.confirm is not None:
+            if not self.clock.may_confirm(self.episodes):  # no time left to confirm it
+                self.clock.ran_out = True
+                self._offer((0.0, rate, mean))
+                return False
+            record = self.confirm(self.model, len(self.confirmations))
+            record["timesteps"] = int(self.num_timesteps)
+            self.confirm_s = float(record.get("seconds", 0.0))
+            self.confirmations.append(record)
+            path = self.run_dir / "confirmations.json"
+            write_atomic(path, json.dumps(self.confirmations, indent=1) + "\n")
+        candidate = self.streak >= self.times and (record is None or record["passed"])
+        score = (1.0, record["rate"], mean) if record is not None else (0.0, rate, mean)
+        self._offer(score, force=candidate)
+        if candidate:
+            rule = (f">= {self.rate:.0%} success at {self.times} evaluations in a row of "
+                    f"{len(successes)} episodes")  # fmt: skip
+            if record is not None:
+                rule += (f", then >= {record['needed']} of {record['episodes']} fresh "
+                         "episodes (agents.learning.confirm)")  # fmt: skip
             self.solved = {
                 "seconds": round(self.clock.elapsed(), 2),
                 "timesteps": int(self.num_timesteps),
-                "rule": f">= {self.rate:.0%} success at {self.times} evaluations in a row "
-                f"of {len(successes)} episodes",
+                "rule": rule,
+                **({"confirmed": record} if record is not None else {}),
             }
             write_atomic(self.run_dir / "solved.json", json.dumps(self.solved, indent=1) + "\n")
             return False
         return True
+
+    def _offer(self, score: tuple, force: bool = False) -> None:
+        """Keep the model just evaluated if `score` beats the best so far (or `force`)."""
+        if self.best is None or score > self.best or force:
+            self.best = score
+            self.save_best()
 
     def save_best(self) -> None:
         best = self.run_dir / "best"
@@ -334,8 +404,9 @@ class SolvedStop(BaseCallback):
         (best / "config.yml.tmp").replace(best / "config.yml")
         with atomic_path(best / "model.zip") as tmp:
             self.model.save(tmp)
-        record = {"timesteps": int(self.num_timesteps), "success_rate": self.best[0],
-                  "mean_return": self.best[1]}  # fmt: skip
+        record = {"timesteps": int(self.num_timesteps), "success_rate": self.best[1],
+                  "mean_return": self.best[2],
+                  "measured_on": "confirmation" if self.best[0] else "evaluation"}  # fmt: skip
         write_atomic(best / "best.json", json.dumps(record, indent=1) + "\n")
 
 
