@@ -42,6 +42,7 @@ from .common import (
     env_slug,
     fail,
     non_negative_int,
+    plain_warnings,
     positive_int,
     register_envs,
     set_torch_threads,
@@ -394,4 +395,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())

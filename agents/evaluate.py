@@ -23,6 +23,7 @@ from .common import (
     fail,
     lagrange_env,
     non_negative_int,
+    plain_warnings,
     positive_int,
     task_of,
 )
@@ -201,4 +202,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())

@@ -34,6 +34,7 @@ from .common import (
     UserError,
     check_env_id,
     non_negative_int,
+    plain_warnings,
     positive_int,
     set_torch_threads,
     task_of,
@@ -405,4 +406,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())
