@@ -4,11 +4,11 @@ torque of a reaction wheel, and stop there. `examples.slew:Examples/Slew-v0`.
 ## Description
 A rigid body floats free in a plane (no gravity, no pivot torque) and carries a reaction
 wheel on an axle at its centre, spun by a motor on the body (the bearing's viscous
-friction b_wheel is 0 by default). The motor's torque turns the wheel one way and the
-body the other, so the body turns only by exchanging momentum with the wheel. At every
-reset a goal attitude theta* is drawn; the body starts nearly at rest and must turn there and **stop**: success
-asks the attitude within 0.02 rad and the body's rate below 0.01 rad/s, a rest-to-rest
-slew whose success set is as tight on the rate as on the position.
+friction b_wheel is 0 by default). The motor's torque turns the wheel one way and the body
+the other, so the body turns only by exchanging momentum with the wheel. At every reset a
+goal attitude theta* is drawn; the body starts nearly at rest and must turn there and
+**stop**: success asks the attitude within 0.02 rad and the body's rate below 0.01 rad/s,
+a rest-to-rest slew whose success set is as tight on the rate as on the position.
 
 ```
    +-------+
