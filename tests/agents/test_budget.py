@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import envs
-from agents.learning import budget
+from agents.learning import budget, solved
 from agents.learning import confirm as confirmation
 from agents.scoring.trained import SB3Policy
 from agents.train import main, train
@@ -65,7 +65,7 @@ def test_a_budget_run_stops_when_solved_keeping_the_model_that_met_it(tmp_path, 
 def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_path):
     # one lucky evaluation (100 % between 40 % ones) is the best so far until the rule is
     # met; then the model that met it (85 % three times) replaces it
-    stop = budget.SolvedStop(tmp_path, SimpleNamespace(elapsed=lambda: 1.0), 0.8, 3)
+    stop = solved.SolvedStop(tmp_path, SimpleNamespace(elapsed=lambda: 1.0), 0.8, 3)
     kept = []
     stop.save_best = lambda: kept.append(stop.num_timesteps)
     stop.parent = SimpleNamespace(_is_success_buffer=[], evaluations_results=[])
@@ -80,7 +80,7 @@ def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_pat
 
 def _solved_stop(tmp_path, confirm):
     clock = SimpleNamespace(elapsed=lambda: 1.0, may_confirm=lambda n: True, ran_out=False)
-    stop = budget.SolvedStop(tmp_path, clock, 0.8, 3, confirm=confirm)
+    stop = solved.SolvedStop(tmp_path, clock, 0.8, 3, confirm=confirm)
     kept = []
     stop.save_best = lambda: kept.append(stop.num_timesteps)
     stop.parent = SimpleNamespace(_is_success_buffer=[], evaluations_results=[])
