@@ -215,7 +215,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
         # an evaluation's most vector steps: the episodes an eval env runs x the time limit
         steps = -(-o["eval_episodes"] // eval_envs) * episode_steps(env_id, task_of(env_id))
-        clock = budgets.Clock(o["budget"] or float("inf"), steps, eval_envs, o["eval_episodes"])
+        clock = budgets.Clock(o["budget"] or float("inf"), steps, eval_envs)
         solved = stops.solved_stop(run_dir, clock, env_id, hp) if o["budget"] else None
         evaluation = budgets.BudgetedEval(  # on the step schedule; in time for a budget
             eval_env,

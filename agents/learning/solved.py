@@ -44,14 +44,12 @@ class SolvedStop(BaseCallback):
     `clock` gives the training's elapsed seconds (and, with `confirm`, whether a
     confirmation still fits the budget)."""
 
-    def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None, confirm=None,
-                 episodes: int | None = None):  # fmt: skip
+    def __init__(self, run_dir: Path, clock: Clock, rate=None, times=None, confirm=None):
         super().__init__()
         self.run_dir, self.clock = Path(run_dir), clock
         self.rate = float(budget.SOLVED_RATE if rate is None else rate)
         self.times = int(budget.SOLVED_TIMES if times is None else times)
         self.confirm = confirm  # (model, attempt) -> a record with "passed" (confirm.confirm)
-        self.episodes = int(confirmation.EPISODES if episodes is None else episodes)
         self.streak = 0
         self.best: tuple[float, float, float] | None = None  # (confirmed?, rate, return)
         self.solved: dict | None = None
@@ -73,7 +71,7 @@ class SolvedStop(BaseCallback):
         self.confirm_s = 0.0
         record = None
         if self.streak >= self.times and self.confirm is not None:
-            if not self.clock.may_confirm(self.episodes):  # no time left to confirm it
+            if not self.clock.may_confirm():  # no time left to confirm it
                 self.clock.ran_out = True
                 self._offer((0.0, rate, mean))
                 return False

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -79,7 +80,7 @@ def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_pat
 
 
 def _solved_stop(tmp_path, confirm):
-    clock = SimpleNamespace(elapsed=lambda: 1.0, may_confirm=lambda n: True, ran_out=False)
+    clock = SimpleNamespace(elapsed=lambda: 1.0, may_confirm=lambda: True, ran_out=False)
     stop = solved.SolvedStop(tmp_path, clock, 0.8, 3, confirm=confirm)
     kept = []
     stop.save_best = lambda: kept.append(stop.num_timesteps)
@@ -246,3 +247,16 @@ def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
         "solved after 62 s, 310,000 steps, confirmed on 190 of 200 fresh starts (95 %, "
         "95 % [91, 97])"
     )
+
+
+def test_a_confirmation_is_budgeted_as_an_evaluation_until_one_is_measured():
+    # 20 s left, an evaluation of 5 envs x 4 episodes x 300 steps measured at 2 ms a step
+    # (2.4 s at its longest, plus 0.75 s of records): a confirmation, one batched step per
+    # time step, fits; the first estimate (an evaluation's time per episode x 200: 24 s)
+    # refused it with this much time left
+    clock = budget.Clock(100.0, eval_steps=1200, eval_envs=5)
+    clock.start = time.perf_counter() - 80.0
+    clock.eval_step_s = 0.002
+    assert clock.may_confirm()
+    clock.confirmed(25.0)  # once measured, its own time counts
+    assert not clock.may_confirm()
