@@ -42,6 +42,7 @@ from .common import (
     check_env_ids,
     env_slug,
     fail,
+    plain_warnings,
     positive_int,
     register_envs,
     seed_int,
@@ -397,4 +398,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())

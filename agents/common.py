@@ -91,6 +91,22 @@ def check_file_applies(table: dict, path, env_id: str) -> None:
         )
 
 
+def plain_warnings() -> None:
+    """Print warnings as one-line messages ("warning: ..." on stderr) instead of Python's
+    form with the library's file, line and source: for the command-line entry points, whose
+    users read messages, not tracebacks."""
+    import sys
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        try:
+            print(f"warning: {message}", file=file or sys.stderr)
+        except OSError:  # stderr closed: nothing to say it on
+            pass
+
+    warnings.showwarning = show
+
+
 def fail(parser, message) -> NoReturn:
     """End a command-line program on a user error: one line, exit status 2."""
     parser.exit(2, f"{parser.prog}: error: {message}\n")

@@ -22,13 +22,14 @@ from .common import (
     check_env_id,
     fail,
     lagrange_env,
+    plain_warnings,
     positive_int,
     seed_int,
     task_of,
 )
 from .control.policies import RandomPolicy, ZeroPolicy
-from .scoring.episodes import ENDINGS, EvalStats, run_episodes  # noqa: F401  (ENDINGS: as before)
-from .scoring.trained import SB3Policy
+from .scoring.episodes import ENDINGS, EvalStats, run_episodes, score  # noqa: F401  (ENDINGS: as before)
+from .scoring.trained import SB3Policy, with_handover
 
 BASELINES = ("random", "zero", "heuristic", "lqr", "plan")
 
@@ -70,13 +71,7 @@ def make_agent(name: str, env, seed: int = 0):
         return PlanPolicy(env)
     path = Path(name)
     if path.suffix == ".zip" or path.is_dir() or path.exists():
-        policy = SB3Policy.load(path, env)
-        if policy.handover is None:
-            return policy
-        from .control.handover import HandOverPolicy, handover_options
-
-        h = handover_options(policy.handover)
-        return HandOverPolicy(policy, env, h["level"], h["verify"], h["verify_level"])
+        return with_handover(SB3Policy.load(path, env), env)
     raise UserError(
         f"Unknown agent {name!r}: expected one of {', '.join(BASELINES)} or the path of a "
         f"trained model (model.zip or its run directory)."
@@ -101,15 +96,16 @@ def evaluate(
     env_id = check_env_id(env_id)
     if episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes}.")
-    options = env_kwargs(env_id, randomize)
-    mode = "vector_entry_point"
-    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode=mode, **options)
-    try:
+    policies = []
+
+    def build(venv):
         policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
         check_policy_fits(policy, venv)
-        stats = _run(venv, policy, seed, deterministic)
-    finally:
-        venv.close()
+        policies.append(policy)
+        return policy
+
+    stats = score(env_id, build, episodes, seed, deterministic, **env_kwargs(env_id, randomize))
+    policy = policies[0]
     if video_dir is not None:
         record_video(env_id, policy, video_dir, seed, deterministic)
     return stats
@@ -128,12 +124,6 @@ def check_policy_fits(policy, venv) -> None:
             f"actions {model.action_space.shape}; {venv.spec.id if venv.spec else 'this env'} "
             f"has {obs.shape} and {act.shape}: it was trained on another environment."
         )
-
-
-def _run(venv, policy, seed: int, deterministic: bool) -> EvalStats:
-    """The first episode of every copy, copy i reset with seed + i."""
-    obs, _ = venv.reset(seed=seed)
-    return run_episodes(venv, policy, obs, deterministic)
 
 
 def record_video(env_id: str, policy, video_dir, seed: int = 0, deterministic=True) -> Path:
@@ -212,4 +202,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())

@@ -33,6 +33,7 @@ from .common import (
     DEFAULT_TORCH_THREADS,
     UserError,
     check_env_id,
+    plain_warnings,
     positive_int,
     seed_int,
     set_torch_threads,
@@ -42,6 +43,7 @@ from .common import (
 )
 from .learning import budget as budgets
 from .learning import randomization
+from .learning import solved as stops
 from .learning.callbacks import (
     AtomicCheckpoint,
     GracefulStop,
@@ -151,7 +153,8 @@ def train(
             **({"budget_s": float(budget)} if budget is not None else {}),
         }
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite, config)
-        _write_config(run_dir, config, env_id, env_options)
+        config.update(params.record(env_id, env_options))  # randomize's ranges, --params
+        write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq
             or budgets.budget_eval_freq(total, hp["n_timesteps"], budget, off_policy(algo)),
@@ -198,12 +201,6 @@ def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool
     return randomization.env_kwargs(env_id, hp.get("randomize"))
 
 
-def _write_config(run_dir: Path, config: dict, env_id: str, env_options: dict) -> None:
-    """config.yml: `config` with randomize's ranges and --params added, written atomically."""
-    config.update(params.record(env_id, env_options))
-    write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
-
-
 def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **o) -> TrainResult:
     """Build (or load) the model, learn up to `total` timesteps, save; see `train`."""
     ckpt_dir = run_dir / "checkpoints"
@@ -216,10 +213,10 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         )
         curves = CurveLogger(run_dir, f"{algo.upper()} on {env_id}", found[0] if found else None)
         checkpoint = AtomicCheckpoint(o["checkpoint_freq"], ckpt_dir, curves)
-        per_env = -(-o["eval_episodes"] // eval_envs)  # the episodes an eval env runs
-        horizon = episode_steps(env_id, task_of(env_id))
-        clock = budgets.Clock(o["budget"] or float("inf"), per_env * horizon, eval_envs)
-        solved = budgets.SolvedStop(run_dir, clock) if o["budget"] else None
+        # an evaluation's most vector steps: the episodes an eval env runs x the time limit
+        steps = -(-o["eval_episodes"] // eval_envs) * episode_steps(env_id, task_of(env_id))
+        clock = budgets.Clock(o["budget"] or float("inf"), steps, eval_envs)
+        solved = stops.solved_stop(run_dir, clock, env_id, hp) if o["budget"] else None
         evaluation = budgets.BudgetedEval(  # on the step schedule; in time for a budget
             eval_env,
             o["eval_freq"],
@@ -247,7 +244,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
                 checkpoint.save()
             model_path = save_final(model, run_dir)
             if solved is not None and stop.signum is None:  # the best evaluated, kept
-                budgets.keep_best(evaluation, solved, run_dir)
+                stops.keep_best(evaluation, solved, run_dir)
             curves.close()
         wall = clock.elapsed()
     finally:
@@ -397,4 +394,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    plain_warnings()  # a command prints messages, not source lines
     sys.exit(main())

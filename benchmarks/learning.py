@@ -11,7 +11,8 @@ of `examples/` registers when imported (a module that does not import, for want 
 optional package, is named and skipped), so a new example joins by being there. Each run
 trains with `agents.train.train(..., budget=...)`: evaluations of 20 episodes every
 `agents.learning.budget.budget_eval_freq` steps, stop at >= 80 % at three in a row
-(`agents.learning.budget.RULE`), the best model kept. The kept
+confirmed on fresh starts (`agents.learning.budget.RULE`), the confirmed model kept (else
+the best). The kept
 model is then scored on 20 seeded episodes (seeds 0..19, as `agents.check`): success with
 Wilson's 95 % interval. The columns "to 80 %" give the training seconds and env-steps at
 which the rule was met (blank: not within the budget). A run that hands over to LQR is

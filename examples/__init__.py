@@ -23,6 +23,9 @@ ENVS: dict[str, str] = {
     "Examples/SeriesElastic-v0": "series_elastic",
     "Examples/PlanarVTOL-v0": "planar_vtol",
     "Examples/Segway-v0": "segway",
+    "Examples/ThreeLinkArm-v0": "three_link_arm",
+    "Examples/Slew-v0": "slew",
+    "Examples/MassChain-v0": "mass_chain",
 }
 """Every example env id -> the module of examples/ that registers it on import."""
 

@@ -173,19 +173,16 @@ def _normalize_kwargs(hp: dict) -> dict | None:
 
 def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
     """`venv` with the reward scale, LQR shaping and success bonus the hyperparameters ask
-    for (agents.learning.shaping; the registered reward is untouched), or `venv` itself. Warns first
-    when the task's reward is flat inside the tolerance of its success set
-    (agents.scoring.diagnosis)."""
+    for (agents.learning.shaping; the registered reward is untouched), or `venv` itself.
+    (Whether the task's reward is flat inside its success set is said where it matters, in
+    the diagnosis of an agent that misses the set: agents.scoring.diagnosis.)"""
     from ..common import task_of
-    from ..scoring.diagnosis import warn_if_flat
     from .defaults import episode_steps
     from .shaping import TaskRewardVecEnv, lqr_potential
 
     scale = float(hp.get("reward_scale", 1.0))
     weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
     bonus = float((hp.get("shaping") or {}).get("success", 0.0))
-    if "reward_scale" in hp or "shaping" in hp:  # a Lagrange env's derived settings
-        warn_if_flat(env_id, shaped=bool(weight or bonus))
     if scale == 1.0 and not weight and not bonus:
         return venv
     gamma = float(hp.get("gamma", 0.99))

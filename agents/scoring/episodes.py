@@ -83,3 +83,22 @@ def run_episodes(venv, policy, obs, deterministic: bool = True) -> EvalStats:
         diverged[done] = np.asarray(info.get("diverged", np.zeros(n, bool)))[done]
         running &= ~done
     return EvalStats(returns, lengths, successes, ended_early, diverged & ended_early)
+
+
+def score(env_id: str, build, episodes: int, seed: int, deterministic: bool = True,
+          **options) -> EvalStats:  # fmt: skip
+    """The evaluation every program reports: `episodes` copies of `env_id`'s native vector
+    env (env `options` such as `randomize`), copy i reset with seed + i, the first episode
+    of each under the policy `build(venv)` returns. agents.evaluate scores with it, and so
+    does the confirmation of a training run that met its stop rule
+    (agents.learning.confirm): one code path, so the two cannot differ in their setup."""
+    import gymnasium as gym
+
+    mode = "vector_entry_point"
+    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode=mode, **options)
+    try:
+        policy = build(venv)
+        obs, _ = venv.reset(seed=seed)
+        return run_episodes(venv, policy, obs, deterministic)
+    finally:
+        venv.close()

@@ -40,16 +40,37 @@ def budget_run_dir(out: Path, env_id: str, algo: str, seed: int, seconds: float,
 
 
 def solved_note(run_dir: Path, seconds: float | None) -> str:
-    """'solved after S s, N steps' (or 'not solved in B s') for a time-budget run."""
+    """The verdict of a time-budget run, read from its record (solved.json, and
+    confirmations.json for the candidates fresh starts did not confirm): 'solved after S s,
+    N steps, confirmed on K of M fresh starts (R %, 95 % [L, H])', or 'not solved in B s'
+    with the best candidate's confirmation. The one source of the verdict: the report's
+    note and the learning benchmark read the same files."""
     import json
 
     if seconds is None:
         return ""
     path = Path(run_dir) / "solved.json"
     if not path.exists():
-        return f"not solved in {seconds:g} s (best evaluation kept)"
+        tried = Path(run_dir) / "confirmations.json"
+        candidates = json.loads(tried.read_text()) if tried.exists() else []
+        if not candidates:
+            return f"not solved in {seconds:g} s (best evaluation kept)"
+        best = max(candidates, key=lambda c: c["rate"])
+        return (f"not solved in {seconds:g} s: {len(candidates)} candidates met the rule, "
+                f"none confirmed (the best {confirmed_text(best)}; kept)")  # fmt: skip
     solved = json.loads(path.read_text())
-    return f"solved after {solved['seconds']:.0f} s, {solved['timesteps']:,} steps"
+    note = f"solved after {solved['seconds']:.0f} s, {solved['timesteps']:,} steps"
+    if "confirmed" in solved:
+        note += f", confirmed on {confirmed_text(solved['confirmed'])}"
+    return note
+
+
+def confirmed_text(record: dict) -> str:
+    """'K of M fresh starts (R %, 95 % [L, H])' of a confirmation record."""
+    low, high = record["wilson95"]
+    rate = f"{100 * record['rate']:.0f} %"
+    return (f"{record['successes']} of {record['episodes']} fresh starts ({rate}, "
+            f"95 % [{100 * low:.0f}, {100 * high:.0f}])")  # fmt: skip
 
 
 def resumed_note(run_dir: Path) -> str:

@@ -67,6 +67,20 @@ class SB3Policy:
         policy.handover = (run.get("hyperparams") or {}).get("handover")
         return policy
 
+    @classmethod
+    def of_model(cls, model, handover: dict | None = None) -> SB3Policy:
+        """The policy of a model in training, with a copy of its normalisation statistics
+        as they are now (what a save would write) and the run's hand-over."""
+        import copy
+
+        vecnorm = model.get_vec_normalize_env()
+        policy = cls(model)
+        if vecnorm is not None and vecnorm.norm_obs:
+            rms = copy.deepcopy(vecnorm.obs_rms)
+            policy = cls(model, rms, vecnorm.clip_obs, vecnorm.epsilon)
+        policy.handover = handover
+        return policy
+
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if self.obs_rms is None:
             return obs
@@ -76,6 +90,17 @@ class SB3Policy:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         obs = np.asarray(observation, dtype=np.float32)
         return self.model.predict(self.normalize(obs), state, episode_start, deterministic)
+
+
+def with_handover(policy: SB3Policy, env):
+    """`policy` acting as it was trained to: handing over to LQR where its run declares a
+    hand-over (agents.control.handover), built for `env`."""
+    if policy.handover is None:
+        return policy
+    from ..control.handover import HandOverPolicy, handover_options
+
+    h = handover_options(policy.handover)
+    return HandOverPolicy(policy, env, h["level"], h["verify"], h["verify_level"])
 
 
 def _env_id(env) -> str | None:

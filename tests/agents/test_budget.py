@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import json
 import tempfile
+import time
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import envs
-from agents.learning import budget
+from agents.learning import budget, solved
+from agents.learning import confirm as confirmation
 from agents.scoring.trained import SB3Policy
 from agents.train import main, train
 
@@ -44,11 +46,17 @@ def test_the_same_seed_and_step_budget_train_the_same_agent(tmp_path):
 
 def test_a_budget_run_stops_when_solved_keeping_the_model_that_met_it(tmp_path, monkeypatch):
     monkeypatch.setattr(budget, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
+    monkeypatch.setattr(confirmation, "RATE", 0.0)  # and any confirmation confirms it
+    monkeypatch.setattr(confirmation, "EPISODES", 8)
     result = train(BEAD, timesteps=10_000, run_dir=tmp_path, eval_freq=512, budget=600, **SMALL)
     # solved at the third evaluation (512, 1024, 1536 steps: three in a row at >= 0 %)
     assert result.solved is not None and result.solved["timesteps"] == 1536
     assert result.timesteps == 1536
-    assert json.loads((tmp_path / "solved.json").read_text())["timesteps"] == 1536
+    record = json.loads((tmp_path / "solved.json").read_text())
+    assert record["timesteps"] == 1536
+    # confirmed on fresh starts, seeds disjoint from the check's (0..19)
+    assert record["confirmed"]["episodes"] == 8 and record["confirmed"]["passed"]
+    assert record["confirmed"]["seeds"] == [confirmation.SEED, confirmation.SEED + 7]
     best = json.loads((tmp_path / "best" / "best.json").read_text())
     assert (tmp_path / "best" / "model.zip").read_bytes() == result.model_path.read_bytes()
     assert best["timesteps"] == 1536
@@ -58,7 +66,7 @@ def test_a_budget_run_stops_when_solved_keeping_the_model_that_met_it(tmp_path, 
 def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_path):
     # one lucky evaluation (100 % between 40 % ones) is the best so far until the rule is
     # met; then the model that met it (85 % three times) replaces it
-    stop = budget.SolvedStop(tmp_path, SimpleNamespace(elapsed=lambda: 1.0), 0.8, 3)
+    stop = solved.SolvedStop(tmp_path, SimpleNamespace(elapsed=lambda: 1.0), 0.8, 3)
     kept = []
     stop.save_best = lambda: kept.append(stop.num_timesteps)
     stop.parent = SimpleNamespace(_is_success_buffer=[], evaluations_results=[])
@@ -69,6 +77,64 @@ def test_a_solved_run_keeps_the_model_that_met_the_rule_not_its_luckiest(tmp_pat
         go_on = stop._on_step()
     assert not go_on and stop.solved["timesteps"] == 6
     assert kept == [1, 2, 6]  # the first, the lucky one, and the one that met the rule
+
+
+def _solved_stop(tmp_path, confirm):
+    clock = SimpleNamespace(elapsed=lambda: 1.0, may_confirm=lambda: True, ran_out=False)
+    stop = solved.SolvedStop(tmp_path, clock, 0.8, 3, confirm=confirm)
+    kept = []
+    stop.save_best = lambda: kept.append(stop.num_timesteps)
+    stop.parent = SimpleNamespace(_is_success_buffer=[], evaluations_results=[])
+    stop.model = None  # the confirmation here is a stand-in that needs none
+    return stop, kept
+
+
+def _evaluated(stop, steps, rate) -> bool:
+    stop.num_timesteps = steps
+    stop.parent._is_success_buffer = [1.0] * int(rate * 20) + [0.0] * (20 - int(rate * 20))
+    stop.parent.evaluations_results.append([-1.0])
+    return stop._on_step()
+
+
+def test_a_candidate_the_fresh_starts_do_not_confirm_does_not_stop_training(tmp_path):
+    # the old rule stopped at the third evaluation at >= 80 %; a candidate that scores 75 %
+    # of the confirmation's fresh starts does not stop training, the next one (95 %) does
+    rates = iter([0.75, 0.95])
+
+    def confirm(model, attempt):
+        rate = next(rates)
+        return {"rate": rate, "passed": rate >= 0.92, "episodes": 200, "needed": 184,
+                "seconds": 0.5, "attempt": attempt}  # fmt: skip
+
+    stop, kept = _solved_stop(tmp_path, confirm)
+    go_on = [_evaluated(stop, s, r) for s, r in enumerate([0.85, 0.9, 0.85, 0.9], start=1)]
+    assert go_on == [True, True, True, False]
+    assert stop.solved["timesteps"] == 4 and stop.solved["confirmed"]["rate"] == 0.95
+    assert [c["attempt"] for c in stop.confirmations] == [0, 1]
+    assert kept[-1] == 4  # the confirmed model is the one kept
+    saved = json.loads((tmp_path / "confirmations.json").read_text())
+    assert [c["passed"] for c in saved] == [False, True]
+    assert json.loads((tmp_path / "solved.json").read_text())["confirmed"]["rate"] == 0.95
+
+
+def test_a_model_measured_on_fresh_starts_outranks_a_lucky_evaluation(tmp_path):
+    # a run out of time keeps its best model: one confirmed at 88 % of 200 fresh starts
+    # (not enough to stop) ranks above a later single evaluation of 100 % of 20
+    stop, kept = _solved_stop(
+        tmp_path, lambda m, a: {"rate": 0.88, "passed": False, "seconds": 0.1}
+    )
+    for s, r in enumerate([0.85, 0.85, 0.85, 0.4, 1.0], start=1):
+        assert _evaluated(stop, s, r)
+    assert kept == [1, 3] and stop.best[:2] == (1.0, 0.88)
+
+
+def test_the_stated_promise_holds_in_numbers():
+    # the docstring's (and docs/learning.md's) numbers, from scipy.stats.binom
+    numbers = confirmation.promise()
+    assert confirmation.needed() == 184
+    assert round(numbers["wilson_low"], 3) == 0.874
+    assert round(numbers["fresh_below_at_rate"], 3) == 0.018
+    assert round(numbers["worst_once"], 3) == 0.011 and round(numbers["worst_tries"], 3) == 0.041
 
 
 def test_a_budget_run_stops_when_the_time_is_spent(tmp_path, monkeypatch):
@@ -163,3 +229,34 @@ def test_a_budget_run_evaluates_an_off_policy_learner_ten_times_as_often():
     assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, False) == 10_000
     assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 3_000_000, 300.0, True) == 100_000
     assert budget.budget_eval_freq(50_000, 30_000, None, True) == 3_000  # no budget: as before
+
+
+def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
+    from agents.scoring.learned import solved_note
+
+    record = {"successes": 190, "episodes": 200, "rate": 0.95, "wilson95": [0.91, 0.97]}
+    (tmp_path / "confirmations.json").write_text(json.dumps([{**record, "successes": 176,
+                                                                "rate": 0.88}]))
+    assert solved_note(tmp_path, 600) == (
+        "not solved in 600 s: 1 candidates met the rule, none confirmed (the best 176 of "
+        "200 fresh starts (88 %, 95 % [91, 97]); kept)"
+    )
+    solved = {"seconds": 62.4, "timesteps": 310_000, "confirmed": record}
+    (tmp_path / "solved.json").write_text(json.dumps(solved))
+    assert solved_note(tmp_path, 600) == (
+        "solved after 62 s, 310,000 steps, confirmed on 190 of 200 fresh starts (95 %, "
+        "95 % [91, 97])"
+    )
+
+
+def test_a_confirmation_is_budgeted_as_an_evaluation_until_one_is_measured():
+    # 20 s left, an evaluation of 5 envs x 4 episodes x 300 steps measured at 2 ms a step
+    # (2.4 s at its longest, plus 0.75 s of records): a confirmation, one batched step per
+    # time step, fits; the first estimate (an evaluation's time per episode x 200: 24 s)
+    # refused it with this much time left
+    clock = budget.Clock(100.0, eval_steps=1200, eval_envs=5)
+    clock.start = time.perf_counter() - 80.0
+    clock.eval_step_s = 0.002
+    assert clock.may_confirm()
+    clock.confirmed(25.0)  # once measured, its own time counts
+    assert not clock.may_confirm()

@@ -222,3 +222,36 @@ def test_a_bad_shaping_setting_names_its_form(shaping):
     assert hparams.check_entries({"shaping": {"success": 0.2}}, "f") == {
         "shaping": {"success": 0.2}
     }
+
+
+def test_training_the_built_ins_prints_no_flat_reward_warning():
+    # the crank slider and the bicycle trip the flat-reward probe, and learn without help
+    # (98 % and 100 % of 60 episodes, three seeds): training no longer warns before any
+    # evidence; the diagnosis of an agent that misses names the flat coordinates
+    import warnings
+
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.learning.hparams import load_hyperparams
+    from agents.learning.vecenv import task_reward
+
+    for env_id in ("Lagrange/CrankSlider-v1", "Lagrange/Bicycle-v0"):
+        hp = {**load_hyperparams("ppo", env_id), "shaping": None}
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            task_reward(DummyVecEnv([lambda e=env_id: gym.make(e)]), env_id, hp)
+
+
+def test_a_command_prints_a_warning_as_a_message(capsys, monkeypatch):
+    import sys
+    import warnings
+
+    from agents.common import plain_warnings
+
+    monkeypatch.setattr(warnings, "showwarning", warnings.showwarning)
+    plain_warnings()
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.warn("No LQR shaping for X: LQR refused", UserWarning, stacklevel=1)
+    assert capsys.readouterr().err == "warning: No LQR shaping for X: LQR refused\n"
+    assert sys.stderr is not None

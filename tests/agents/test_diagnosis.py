@@ -29,7 +29,9 @@ def test_the_zero_agent_falls_and_lqr_holds_from_the_same_starts():
     assert lqr.endings["success"] == 4 and np.all(lqr.distance <= 1)
     lines = diagnose(make_agent, FURUTA, "zero", 4, 0)
     assert lines[0].startswith("trained: 4 failure") and lines[1].startswith("lqr: 4 success")
-    assert "reward flat inside the success tolerance along theta" in lines[-1]
+    assert any("reward flat inside the success tolerance along theta" in x for x in lines)
+    assert any(x.startswith("to try: most episodes end early") for x in lines)
+    assert lines[-1].startswith("to try: lqr succeeds from the same starts")
 
 
 def test_a_changed_declaration_gets_another_fingerprint(tmp_path):
@@ -45,3 +47,26 @@ def test_a_changed_declaration_gets_another_fingerprint(tmp_path):
     (tmp_path / "config.yml").write_text(yaml.safe_dump({**config, "task": "0" * 16}))
     with pytest.raises(UserError, match="another declaration of Examples/Furuta-v0"):
         check_fingerprint(tmp_path, FURUTA)
+
+
+def test_the_diagnosis_says_which_condition_of_the_success_set_is_missed_and_what_to_try():
+    # ten episodes end at the goal's angle (inside its 0.05 rad edge) still turning at
+    # 0.5 rad/s (the rate's edge 0.1): the position condition is met, the rate's is not
+    from agents.scoring.diagnosis import Edges, _ends, advice, describe_ends
+    from agents.scoring.episodes import EvalStats
+
+    edges = Edges(("x", "theta", "theta_dot"), np.array([np.inf, 0.05, 0.1]),
+                  np.array([np.nan, 0.01, 1e-4]), 1.0, 200, True)  # fmt: skip
+    n = 10
+    last = np.tile([3.0, 0.01, 0.5], (n, 1))
+    last[0, 1] = 0.2  # one ends outside along theta too
+    trail = np.repeat(last[:, None, :], 50, axis=1)
+    stats = EvalStats(np.zeros(n), np.full(n, 200), np.zeros(n, bool), np.zeros(n, bool))
+    ends = _ends("trained", stats, trail, last, edges, None)
+    assert ends.within == {"theta": 0.9, "theta_dot": 0.0}  # x: the set does not bound it
+    line = describe_ends(ends)
+    assert "at the last step within the success edge along theta in 90%, theta_dot in 0%" in line
+    tips = advice(ends, {}, ["theta_dot"], edges)
+    assert len(tips) == 1 and "does not come to rest (theta_dot" in tips[0]
+    lqr = dataclasses.replace(ends, agent="lqr", endings={"success": n})
+    assert "lqr succeeds from the same starts" in advice(ends, {"lqr": lqr}, [], edges)[-1]
