@@ -4,8 +4,9 @@
 Each compiled model is one Python file named by a key that hashes everything its code depends
 on; numba keeps its machine code beside it (``__pycache__``), and that of the task functions
 users write in ``functions/`` (`function_cache`). The cache is bounded: least recently used
-entries are pruned past a stated size (`dynamics.pruning`; `python -m dynamics cache`). The file's first line records
-its key and the sha256 of the rest, and both are checked before the file is run: that finds
+entries are pruned past a stated size (`dynamics.pruning`; `python -m dynamics cache`). The
+file's first line records its key and the sha256 of the rest, and both are checked before the
+file is run: that finds
 damage, not tampering (anyone who can write the file can write the line too). Where the loader
 knows the exact text it expects (the fused steps, a pickled model's own source) it compares
 the whole file with it. Files are written to a temporary name and renamed, so readers never
