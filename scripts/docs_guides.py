@@ -185,7 +185,7 @@ def robustness_page() -> str:
         "motor response, delay, pushes) moves away from the nominal plant over a grid, and "
         "every agent runs the same seeded episodes at every point, with success and its "
         "Wilson 95 % interval. The controllers keep the nominal model. The method, the "
-        "grids and the discussion are in the README's robustness section; "
+        "grids and the discussion of past runs are in the [results log](results-log.md); "
         "`benchmarks/robustness.py` measures (its `--help` lists the options).",
         "",
     ]
@@ -197,7 +197,7 @@ def robustness_page() -> str:
     figures = ["## Figures", ""]
     figures.append(
         "Each panel moves one quantity; the band is the 95 % interval, the grey line 50 %. "
-        "These figures come from the README's larger runs (100 episodes per grid point, PPO "
+        "These figures come from the larger runs of the results log (100 episodes per grid point, PPO "
         "trained nominally and with randomisation included), not from the run tabulated "
         "above:"
     )
