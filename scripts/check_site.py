@@ -1,4 +1,4 @@
-"""Check a built documentation site as a reader without internet sees it.
+r"""Check a built documentation site as a reader without internet sees it.
 
 Checks, on the folder `mkdocs build` wrote:
 - in the HTML: no script, style sheet, font or image is loaded from another host
@@ -22,8 +22,12 @@ import re
 import shutil
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from functools import partial
 from html import unescape
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 # what makes a browser fetch: <script src>, <link href> (style sheets, fonts, icons,
@@ -51,7 +55,7 @@ def equation_pages(site: Path) -> list[Path]:
     return [p for p in pages if EQUATION.search(p.read_text(encoding="utf-8"))]
 
 
-def rendered_dom(browser: str, page: Path, budget_ms: int = 20000) -> str:
+def rendered_dom(browser: str, page: Path | str, budget_ms: int = 20000) -> str:
     """The page's DOM after its scripts ran, in headless Chromium with no network: every
     host name resolves to nothing, so a script that tried to fetch would fail."""
     command = [
@@ -59,11 +63,11 @@ def rendered_dom(browser: str, page: Path, budget_ms: int = 20000) -> str:
         "--headless",
         "--no-sandbox",
         "--disable-gpu",
-        "--host-resolver-rules=MAP * ~NOTFOUND",
+        "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
         "--allow-file-access-from-files",
         f"--virtual-time-budget={budget_ms}",
         "--dump-dom",
-        page.resolve().as_uri(),
+        page if isinstance(page, str) else page.resolve().as_uri(),
     ]
     done = subprocess.run(command, capture_output=True, text=True, timeout=180)
     if done.returncode != 0:
@@ -99,7 +103,7 @@ window.addEventListener("load", () => {
   const ready = (window.MathJax && MathJax.startup && MathJax.startup.promise) || Promise.resolve();
   ready.then(() => new Promise(r => setTimeout(r, 50))).then(() => {
     const found = {errors: window.__siteCheck.errors, source: [], shrunk: [], cut: [], requests: []};
-    const skip = "CODE,PRE,SCRIPT,STYLE,MJX-CONTAINER,MJX-ASSISTIVE-MML,TEXTAREA";
+    const skip = ["CODE", "PRE", "SCRIPT", "STYLE", "MJX-CONTAINER", "MJX-ASSISTIVE-MML", "TEXTAREA"];
     const tex = /\$[^$\n]*\\[A-Za-z]+[^$\n]*\$|\\\(|\\\[/;
     const walker = document.createTreeWalker(document.querySelector("article") || document.body, NodeFilter.SHOW_TEXT);
     for (let n = walker.nextNode(); n; n = walker.nextNode()) {
@@ -121,7 +125,7 @@ window.addEventListener("load", () => {
         found.cut.push(code.textContent.slice(0, 40));
     }
     for (const r of performance.getEntriesByType("resource"))
-      if (!r.name.startsWith("file:") && !r.name.startsWith("data:")) found.requests.push(r.name);
+      if (!r.name.startsWith(location.origin) && !r.name.startsWith("data:")) found.requests.push(r.name);
     const out = document.createElement("pre");
     out.id = "site-check";
     out.textContent = JSON.stringify(found);
@@ -131,16 +135,18 @@ window.addEventListener("load", () => {
 </script>"""
 
 
-def measure(browser: str, page: Path, budget_ms: int = 20000) -> dict:
-    """What a reader's browser shows of one built page (see the module's docstring): the
-    page is copied beside itself with the probes added, so its relative links still hold."""
+def measure(browser: str, page: Path, base: str, site: Path, budget_ms: int = 20000) -> dict:
+    """What a reader's browser shows of one built page (see the module's docstring), the
+    site served at `base` (over HTTP, as a reader gets it: the search worker cannot start
+    from file://): the page is copied beside itself with the probes added, so its relative
+    links still hold."""
     html = page.read_text(encoding="utf-8")
     html = re.sub(r"<head[^>]*>", lambda m: m.group(0) + PROBE_HEAD, html, count=1)
     html = html.replace("</body>", PROBE_TAIL + "</body>", 1)
     probe = page.with_name(f".site-check-{page.stem}.html")
     probe.write_text(html, encoding="utf-8")
     try:
-        dom = rendered_dom(browser, probe, budget_ms)
+        dom = rendered_dom(browser, base + probe.relative_to(site).as_posix(), budget_ms)
     finally:
         probe.unlink()
     blocks, raw = unrendered(dom)
@@ -157,6 +163,25 @@ FINDINGS = ("raw", "source", "shrunk", "cut", "errors", "requests")
 def count(result: dict, key: str) -> int:
     value = result[key]
     return value if isinstance(value, int) else len(value)
+
+
+@contextmanager
+def serve(site: Path):
+    """The site over HTTP on a free local port, quietly, for the length of the block."""
+    handler = partial(QuietHandler, directory=str(site))
+    server = ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+class QuietHandler(SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
 
 
 def find_browser() -> str | None:
@@ -186,8 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     pages = sorted(p for p in args.site.rglob("*.html") if p.name != "404.html")
     if args.pages:
         pages = [args.site / p for p in args.pages]
-    with ThreadPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(lambda p: measure(browser, p), pages))
+    with serve(args.site) as base, ThreadPoolExecutor(args.jobs) as pool:
+        results = list(pool.map(lambda p: measure(browser, p, base, args.site), pages))
     totals = dict.fromkeys(FINDINGS, 0)
     for page, result in zip(pages, results):
         found = {k: count(result, k) for k in FINDINGS}
