@@ -64,6 +64,7 @@ from benchmarks.robustness_args import (  # noqa: E402
     check_models,
     read_results,
 )
+from benchmarks.baselines import commit as _commit  # noqa: E402
 from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 
@@ -355,6 +356,7 @@ def run(args, argv) -> int:
             + " ".join(sys.argv[1:] if argv is None else argv),
             date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
             machine=f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+            commit=_commit(),
             load_start=load_start,
             load_end=", ".join(f"{v:.1f}" for v in os.getloadavg()),
             wall_s=round(time.perf_counter() - start, 1),

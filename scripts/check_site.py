@@ -95,17 +95,20 @@ window.__siteCheck = {errors: []};
     error.apply(console, arguments);
   };
   window.addEventListener("error", e => window.__siteCheck.errors.push(String(e.message)));
-  window.addEventListener("unhandledrejection", e => window.__siteCheck.errors.push(String(e.reason)));
+  window.addEventListener("unhandledrejection",
+                          e => window.__siteCheck.errors.push(String(e.reason)));
 })();
 </script>"""
 PROBE_TAIL = r"""<script>
 window.addEventListener("load", () => {
-  const ready = (window.MathJax && MathJax.startup && MathJax.startup.promise) || Promise.resolve();
+  const mathjax = window.MathJax && MathJax.startup && MathJax.startup.promise;
+  const ready = mathjax || Promise.resolve();
   ready.then(() => new Promise(r => setTimeout(r, 50))).then(() => {
     const found = {errors: window.__siteCheck.errors, source: [], shrunk: [], cut: [], requests: []};
     const skip = ["CODE", "PRE", "SCRIPT", "STYLE", "MJX-CONTAINER", "MJX-ASSISTIVE-MML", "TEXTAREA"];
     const tex = /\$[^$\n]*\\[A-Za-z]+[^$\n]*\$|\\\(|\\\[/;
-    const walker = document.createTreeWalker(document.querySelector("article") || document.body, NodeFilter.SHOW_TEXT);
+    const text = document.querySelector("article") || document.body;
+    const walker = document.createTreeWalker(text, NodeFilter.SHOW_TEXT);
     for (let n = walker.nextNode(); n; n = walker.nextNode()) {
       let up = n.parentElement, skipped = false;
       for (; up; up = up.parentElement) if (skip.includes(up.tagName)) { skipped = true; break; }
@@ -125,7 +128,8 @@ window.addEventListener("load", () => {
         found.cut.push(code.textContent.slice(0, 40));
     }
     for (const r of performance.getEntriesByType("resource"))
-      if (!r.name.startsWith(location.origin) && !r.name.startsWith("data:")) found.requests.push(r.name);
+      if (!r.name.startsWith(location.origin) && !r.name.startsWith("data:"))
+        found.requests.push(r.name);
     const out = document.createElement("pre");
     out.id = "site-check";
     out.textContent = JSON.stringify(found);

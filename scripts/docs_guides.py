@@ -234,4 +234,9 @@ def robustness_tables(results: dict) -> list[str]:
     runs = results.get("runs", [])
     dates = sorted({r["date"][:10] for r in runs})
     when = f"Measured {', '.join(dates)}" if dates else "Undated"
-    return [f"## Results ({when.lower() if not dates else when})", "", text.strip(), ""]
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from docs_data import staleness
+
+    last = runs[-1] if runs else {}
+    old = staleness(last.get("commit"), last.get("date", "").replace(" UTC", ""))
+    return [f"## Results ({when.lower() if not dates else when})", "", old, text.strip(), ""]

@@ -210,7 +210,8 @@ def measured_on(results: dict) -> str:
     """When, how and on what machine one run of the benchmark measured its rows."""
     m = results["machine"]
     versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
-    return (
+    old = data().staleness(results.get("commit"), results["finished"])
+    return (old + "\n" if old else "") + (
         f"Measured {results['finished'][:10]} ({results['started']} to {results['finished']}, "
         f"{results['wall_s'] / 60:.0f} min) by `{results['command']}`: {results['episodes']} "
         f"episodes per agent, seeds {results['seed']}..{results['seed'] + results['episodes'] - 1}"
@@ -773,10 +774,36 @@ def on_files(files, config):
     return files
 
 
+def main_job_cost() -> str:
+    """What the main job cost when the agents benchmark last ran it whole (its first run in
+    docs/data/agents.json), dated, with its command and machine."""
+    results = benchmark()
+    if results is None:
+        return "No measurement yet (`docs/data/agents.json`)."
+    run = results["runs"][0]
+    m = run["machine"]
+    return (
+        f"The agents benchmark ran it whole with {run['episodes']} episodes per agent in "
+        f"{run['wall_s'] / 60:.0f} minutes on {m['cores']} cores ({m['cpu']}), measured "
+        f"{run['finished'][:10]} by `{run['command']}`; every table of it is on the "
+        f"[agents benchmark](benchmark.md) page.\n\n"
+        + data().staleness(run.get("commit"), run["finished"])
+    )
+
+
+def data():
+    """scripts/docs_data.py: the data files' ages and the learning table."""
+    return sibling("docs_data")
+
+
 def on_page_markdown(markdown, page, config, files):
-    """The home page's environment gallery, from the registry, and the source's citation."""
+    """The pages' rendered data (the learning benchmark's table, the main job's cost), the
+    home page's environment gallery, from the registry, and the source's citation."""
+    if page.file.src_uri == "learning.md":
+        return markdown.replace("<!-- data: learning -->", data().learning_section())
     if page.file.src_uri != "index.md":
         return markdown
+    markdown = markdown.replace("<!-- data: main job -->", main_job_cost())
     markdown = markdown.replace("<!-- source -->", guides().citation())
     cells = [
         f'<a class="env-card" href="envs/{slug(i)}/"><img src="assets/envs/{slug(i)}.gif" '

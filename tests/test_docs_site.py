@@ -223,7 +223,7 @@ def test_equations_render_offline_in_a_real_browser(site):
     check = _checker()
     browser = check.find_browser()
     if browser is None:
-        pytest.skip("no Chromium here (install `chromium` to run it); the HTML checks above still ran")
+        pytest.skip("no Chromium here (install `chromium`); the HTML checks above still ran")
     pages = [
         "models/two_link_arm",  # display equations and the outputs' inline TeX
         "models/whipple_bicycle",  # the longest formulas: the kinetic energy
