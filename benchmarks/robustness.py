@@ -57,6 +57,7 @@ import numpy as np  # noqa: E402
 
 from agents.common import UserError, env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.scoring.report import wilson_interval  # noqa: E402
+from benchmarks.baselines import commit as _commit  # noqa: E402
 from benchmarks.robustness_args import (  # noqa: E402
     PERTURBATIONS,
     build_parser,
@@ -64,7 +65,6 @@ from benchmarks.robustness_args import (  # noqa: E402
     check_models,
     read_results,
 )
-from benchmarks.baselines import commit as _commit  # noqa: E402
 from benchmarks.robustness_report import Quantity, merge, render  # noqa: E402
 from envs.checks import Unsupported  # noqa: E402
 

@@ -197,8 +197,8 @@ def robustness_page() -> str:
     figures = ["## Figures", ""]
     figures.append(
         "Each panel moves one quantity; the band is the 95 % interval, the grey line 50 %. "
-        "These figures come from the larger runs of the results log (100 episodes per grid point, PPO "
-        "trained nominally and with randomisation included), not from the run tabulated "
+        "These figures come from the larger runs of the results log (100 episodes per grid "
+        "point, PPO trained nominally and with randomisation included), not from the run tabulated "
         "above:"
     )
     figures.append("")
