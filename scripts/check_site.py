@@ -6,8 +6,9 @@ Checks, on the folder `mkdocs build` wrote:
 - in a real browser (headless Chromium, with every host name unresolvable), after the
   scripts ran (`measure`): equation blocks still raw TeX (`unrendered`), TeX left as source
   anywhere else in the text (`$...$`, `\(...\)`), formulas drawn smaller than their natural
-  size, code blocks cut at the right edge (wider than their box and not scrolling), console
-  errors and uncaught exceptions, and requests to anything but local files.
+  size, code blocks cut at the right edge (wider than their box and not scrolling), names in
+  a table's first column broken across lines, console errors and uncaught exceptions, and
+  requests to anything but local files.
 
     python scripts/check_site.py SITE_DIR [--browser chromium] [--pages envs/...]
 
@@ -104,7 +105,8 @@ window.addEventListener("load", () => {
   const mathjax = window.MathJax && MathJax.startup && MathJax.startup.promise;
   const ready = mathjax || Promise.resolve();
   ready.then(() => new Promise(r => setTimeout(r, 50))).then(() => {
-    const found = {errors: window.__siteCheck.errors, source: [], shrunk: [], cut: [], requests: []};
+    const found = {errors: window.__siteCheck.errors, source: [], shrunk: [], cut: [], broken: [],
+                   requests: []};
     const skip = ["CODE", "PRE", "SCRIPT", "STYLE", "MJX-CONTAINER", "MJX-ASSISTIVE-MML", "TEXTAREA"];
     const tex = /\$[^$\n]*\\[A-Za-z]+[^$\n]*\$|\\\(|\\\[/;
     const text = document.querySelector("article") || document.body;
@@ -127,6 +129,8 @@ window.addEventListener("load", () => {
       if (code.scrollWidth > code.clientWidth + 1 && !["auto", "scroll"].includes(overflow))
         found.cut.push(code.textContent.slice(0, 40));
     }
+    for (const name of document.querySelectorAll("td:first-child > code"))
+      if (name.getClientRects().length > 1) found.broken.push(name.textContent);
     for (const r of performance.getEntriesByType("resource"))
       if (!r.name.startsWith(location.origin) && !r.name.startsWith("data:"))
         found.requests.push(r.name);
@@ -157,11 +161,11 @@ def measure(browser: str, page: Path, base: str, site: Path, budget_ms: int = 20
     found = re.search(r'<pre id="site-check">(.*?)</pre>', dom, re.S)
     if found is None:
         return {"blocks": blocks, "raw": raw, "errors": ["the probe did not finish"],
-                "source": [], "shrunk": [], "cut": [], "requests": []}  # fmt: skip
+                "source": [], "shrunk": [], "cut": [], "broken": [], "requests": []}  # fmt: skip
     return {"blocks": blocks, "raw": raw, **json.loads(unescape(found.group(1)))}
 
 
-FINDINGS = ("raw", "source", "shrunk", "cut", "errors", "requests")
+FINDINGS = ("raw", "source", "shrunk", "cut", "broken", "errors", "requests")
 
 
 def count(result: dict, key: str) -> int:
@@ -228,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"{len(pages)} pages, {blocks} equation blocks: {totals['raw']} left as raw TeX, "
         f"{totals['source']} formulas as source elsewhere, {totals['shrunk']} shrunk, "
-        f"{totals['cut']} code blocks cut, {totals['errors']} console errors, "
+        f"{totals['cut']} code blocks cut, {totals['broken']} names broken across lines, "
+        f"{totals['errors']} console errors, "
         f"{totals['requests']} outside requests"
     )
     return 1 if (bad or any(totals.values())) else 0

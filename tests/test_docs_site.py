@@ -241,7 +241,8 @@ def test_equations_render_offline_in_a_real_browser(site):
 
 def test_the_browser_probe_catches_source_tex_shrunk_formulas_and_errors(tmp_path):
     """The probe on a page made to fail: TeX left as source in the text, an SVG squeezed to
-    a tenth of its width, a console error; and a clean page passes."""
+    a tenth of its width, a name broken across lines, a console error; and a clean page
+    passes."""
     check = _checker()
     browser = check.find_browser()
     if browser is None:
@@ -250,6 +251,8 @@ def test_the_browser_probe_catches_source_tex_shrunk_formulas_and_errors(tmp_pat
         "<html><head></head><body><article><p>an output: $ - \\frac{l m}{2} $</p>"
         '<div style="width:50px"><mjx-container><svg width="500" height="10" '
         'style="max-width:100%"></svg></mjx-container></div>'
+        '<table><tr><td style="max-width:30px"><code style="word-break:break-word">'
+        "a_very_long_argument_name</code></td><td>x</td></tr></table>"
         "<script>console.error('boom')</script></article></body></html>"
     )
     good = "<html><head></head><body><article><p>a price of $5 and $6</p></article></body></html>"
@@ -258,6 +261,6 @@ def test_the_browser_probe_catches_source_tex_shrunk_formulas_and_errors(tmp_pat
     with check.serve(tmp_path) as base:
         found = check.measure(browser, tmp_path / "bad.html", base, tmp_path)
         assert len(found["source"]) == 1 and found["shrunk"] == ["10%"], found
-        assert found["errors"] == ["boom"], found
+        assert found["errors"] == ["boom"] and found["broken"] == ["a_very_long_argument_name"]
         found = check.measure(browser, tmp_path / "good.html", base, tmp_path)
         assert not any(check.count(found, k) for k in check.FINDINGS), found
