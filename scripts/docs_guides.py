@@ -188,6 +188,14 @@ def robustness_page() -> str:
         "grids and the discussion of past runs are in the [results log](results-log.md); "
         "`benchmarks/robustness.py` measures (its `--help` lists the options).",
         "",
+        "How to use it: find the deviation you expect on your machine (a mass known to 10 %, "
+        "a sensor's noise, a motor's lag) in the tables and read each agent's success there. "
+        "Where a controller falls below what you need, fit the model to the machine "
+        "([identification](identification.md)) and redesign on it, or train with the "
+        "deviation drawn at every reset (`randomize=`, `perturb=`: the "
+        "[library](library.md#environments)). To measure your own system: "
+        "`python benchmarks/robustness.py --envs ENV_ID`.",
+        "",
     ]
     if not ROBUSTNESS.exists():
         body = ["No results file (`docs/data/robustness.json`) yet: copy a run's "
