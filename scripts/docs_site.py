@@ -510,9 +510,8 @@ def arguments(env_id: str) -> str:
     and its meaning, then the model's parameters with their units."""
     facts = env_facts(env_id)
     name = model_name(task_of(env_id))
-    spec = model(name).spec if name else None
-    units = {str(k): p.unit for k, p in spec.parameters.items()} if spec else {}
-    docs = {str(k): p.doc for k, p in spec.parameters.items()} if spec else {}
+    meta = model_meta(name) if name else {"units": {}, "docs": {}}
+    units, docs = meta["units"], meta["docs"]
     table = guides().arguments_table(facts["defaults"], facts["parameters"], units, docs)
     return f'`gymnasium.make("{env_id}", **arguments)` takes:\n\n{table}'
 
@@ -579,10 +578,29 @@ def _derived_text(name: str) -> str:
     return "\n".join(lines)
 
 
+def model_meta(name: str) -> dict:
+    """A model's parameter units and docs and its description, cached on disk like its
+    derived text: building a spec runs its factory's sympy (seconds for the bicycle), which
+    a warm build should not repeat."""
+    import sympy
+
+    parts = (model(name).key, sympy.__version__, inspect.getsource(_model_meta))
+    return json.loads(cached_text(f"meta_{name}", parts, lambda: json.dumps(_model_meta(name))))
+
+
+def _model_meta(name: str) -> dict:
+    spec = model(name).spec
+    return {
+        "units": {str(k): p.unit for k, p in spec.parameters.items()},
+        "docs": {str(k): p.doc for k, p in spec.parameters.items()},
+        "description": spec.description or "",
+    }
+
+
 def model_page(name: str) -> str:
     text = derived_text(name)
     heading, _, rest = text.partition("\n")
-    source = guides().model_source(model(name).spec.description or "")
+    source = guides().model_source(model_meta(name)["description"])
     lines = [heading, "", source, rest]
     on_it = [i for i in env_ids() if model_name(task_of(i)) == name]
     if on_it:
