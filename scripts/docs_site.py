@@ -579,7 +579,7 @@ def _derived_text(name: str) -> str:
 
 
 def model_meta(name: str) -> dict:
-    """A model's parameter units and docs and its description, cached on disk like its
+    """A model's coordinates, inputs, parameter units and docs and its description, cached on disk like its
     derived text: building a spec runs its factory's sympy (seconds for the bicycle), which
     a warm build should not repeat."""
     import sympy
@@ -589,8 +589,11 @@ def model_meta(name: str) -> dict:
 
 
 def _model_meta(name: str) -> dict:
-    spec = model(name).spec
+    m = model(name)
+    spec = m.spec
     return {
+        "coordinates": list(m.coordinates),
+        "inputs": list(m.inputs),
         "units": {str(k): p.unit for k, p in spec.parameters.items()},
         "docs": {str(k): p.doc for k, p in spec.parameters.items()},
         "description": spec.description or "",
@@ -702,13 +705,13 @@ def models_index() -> str:
         "|---|---|---|---|",
     ]
     for name in model_names():
-        m = model(name)
+        m = model_meta(name)
         on_it = [
             f"[{i}](../envs/{slug(i)}.md)" for i in env_ids() if model_name(task_of(i)) == name
         ]
         lines.append(
-            f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m.coordinates)} | "
-            f"{', '.join(f'`{u}`' for u in m.inputs) or '-'} | {', '.join(on_it)} |"
+            f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m['coordinates'])} | "
+            f"{', '.join(f'`{u}`' for u in m['inputs']) or '-'} | {', '.join(on_it)} |"
         )
     return "\n".join(lines) + "\n"
 
