@@ -94,6 +94,19 @@ def _action_shape(env_id: str) -> tuple[int, ...]:
     return gym.make(env_id).action_space.shape
 
 
+def commit() -> str | None:
+    """The checkout's commit, so that the site can say when the code changed after the run
+    (None outside a git checkout)."""
+    import subprocess
+
+    try:
+        done = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                              cwd=Path(__file__).resolve().parents[1], timeout=30)  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return done.stdout.strip() or None if done.returncode == 0 else None
+
+
 def machine() -> dict:
     """What ran the benchmark: processor, cores, memory, OS and the versions that matter."""
     from importlib.metadata import PackageNotFoundError, version
@@ -229,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         "episodes": args.episodes,
         "seed": 0,
         "machine": machine(),
+        "commit": commit(),
     }
     out = Path(args.out)
     report = report_dir(out, [check_env_id(e) for e in args.envs or []], args.timesteps)

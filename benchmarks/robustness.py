@@ -57,6 +57,7 @@ import numpy as np  # noqa: E402
 
 from agents.common import UserError, env_slug, lagrange_env, set_torch_threads, task_of  # noqa: E402
 from agents.scoring.report import wilson_interval  # noqa: E402
+from benchmarks.baselines import commit as _commit  # noqa: E402
 from benchmarks.robustness_args import (  # noqa: E402
     PERTURBATIONS,
     build_parser,
@@ -355,6 +356,7 @@ def run(args, argv) -> int:
             + " ".join(sys.argv[1:] if argv is None else argv),
             date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
             machine=f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+            commit=_commit(),
             load_start=load_start,
             load_end=", ".join(f"{v:.1f}" for v in os.getloadavg()),
             wall_s=round(time.perf_counter() - start, 1),

@@ -185,8 +185,16 @@ def robustness_page() -> str:
         "motor response, delay, pushes) moves away from the nominal plant over a grid, and "
         "every agent runs the same seeded episodes at every point, with success and its "
         "Wilson 95 % interval. The controllers keep the nominal model. The method, the "
-        "grids and the discussion are in the README's robustness section; "
+        "grids and the discussion of past runs are in the [results log](results-log.md); "
         "`benchmarks/robustness.py` measures (its `--help` lists the options).",
+        "",
+        "How to use it: find the deviation you expect on your machine (a mass known to 10 %, "
+        "a sensor's noise, a motor's lag) in the tables and read each agent's success there. "
+        "Where a controller falls below what you need, fit the model to the machine "
+        "([identification](identification.md)) and redesign on it, or train with the "
+        "deviation drawn at every reset (`randomize=`, `perturb=`: the "
+        "[library](library.md#environments)). To measure your own system: "
+        "`python benchmarks/robustness.py --envs ENV_ID`.",
         "",
     ]
     if not ROBUSTNESS.exists():
@@ -197,8 +205,8 @@ def robustness_page() -> str:
     figures = ["## Figures", ""]
     figures.append(
         "Each panel moves one quantity; the band is the 95 % interval, the grey line 50 %. "
-        "These figures come from the README's larger runs (100 episodes per grid point, PPO "
-        "trained nominally and with randomisation included), not from the run tabulated "
+        "These figures come from the larger runs of the results log (100 episodes per grid "
+        "point, PPO trained nominally and with randomisation included), not from the run tabulated "
         "above:"
     )
     figures.append("")
@@ -234,4 +242,9 @@ def robustness_tables(results: dict) -> list[str]:
     runs = results.get("runs", [])
     dates = sorted({r["date"][:10] for r in runs})
     when = f"Measured {', '.join(dates)}" if dates else "Undated"
-    return [f"## Results ({when.lower() if not dates else when})", "", text.strip(), ""]
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from docs_data import staleness
+
+    last = runs[-1] if runs else {}
+    old = staleness(last.get("commit"), last.get("date", "").replace(" UTC", ""))
+    return [f"## Results ({when.lower() if not dates else when})", "", old, text.strip(), ""]

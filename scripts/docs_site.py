@@ -210,7 +210,8 @@ def measured_on(results: dict) -> str:
     """When, how and on what machine one run of the benchmark measured its rows."""
     m = results["machine"]
     versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
-    return (
+    old = data().staleness(results.get("commit"), results["finished"])
+    return (old + "\n" if old else "") + (
         f"Measured {results['finished'][:10]} ({results['started']} to {results['finished']}, "
         f"{results['wall_s'] / 60:.0f} min) by `{results['command']}`: {results['episodes']} "
         f"episodes per agent, seeds {results['seed']}..{results['seed'] + results['episodes'] - 1}"
@@ -509,9 +510,8 @@ def arguments(env_id: str) -> str:
     and its meaning, then the model's parameters with their units."""
     facts = env_facts(env_id)
     name = model_name(task_of(env_id))
-    spec = model(name).spec if name else None
-    units = {str(k): p.unit for k, p in spec.parameters.items()} if spec else {}
-    docs = {str(k): p.doc for k, p in spec.parameters.items()} if spec else {}
+    meta = model_meta(name) if name else {"units": {}, "docs": {}}
+    units, docs = meta["units"], meta["docs"]
     table = guides().arguments_table(facts["defaults"], facts["parameters"], units, docs)
     return f'`gymnasium.make("{env_id}", **arguments)` takes:\n\n{table}'
 
@@ -578,10 +578,32 @@ def _derived_text(name: str) -> str:
     return "\n".join(lines)
 
 
+def model_meta(name: str) -> dict:
+    """A model's coordinates, inputs, parameter units and docs and its description, cached on disk like its
+    derived text: building a spec runs its factory's sympy (seconds for the bicycle), which
+    a warm build should not repeat."""
+    import sympy
+
+    parts = (model(name).key, sympy.__version__, inspect.getsource(_model_meta))
+    return json.loads(cached_text(f"meta_{name}", parts, lambda: json.dumps(_model_meta(name))))
+
+
+def _model_meta(name: str) -> dict:
+    m = model(name)
+    spec = m.spec
+    return {
+        "coordinates": list(m.coordinates),
+        "inputs": list(m.inputs),
+        "units": {str(k): p.unit for k, p in spec.parameters.items()},
+        "docs": {str(k): p.doc for k, p in spec.parameters.items()},
+        "description": spec.description or "",
+    }
+
+
 def model_page(name: str) -> str:
     text = derived_text(name)
     heading, _, rest = text.partition("\n")
-    source = guides().model_source(model(name).spec.description or "")
+    source = guides().model_source(model_meta(name)["description"])
     lines = [heading, "", source, rest]
     on_it = [i for i in env_ids() if model_name(task_of(i)) == name]
     if on_it:
@@ -683,13 +705,13 @@ def models_index() -> str:
         "|---|---|---|---|",
     ]
     for name in model_names():
-        m = model(name)
+        m = model_meta(name)
         on_it = [
             f"[{i}](../envs/{slug(i)}.md)" for i in env_ids() if model_name(task_of(i)) == name
         ]
         lines.append(
-            f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m.coordinates)} | "
-            f"{', '.join(f'`{u}`' for u in m.inputs) or '-'} | {', '.join(on_it)} |"
+            f"| [`{name}`]({name}.md) | {', '.join(f'`{c}`' for c in m['coordinates'])} | "
+            f"{', '.join(f'`{u}`' for u in m['inputs']) or '-'} | {', '.join(on_it)} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -773,10 +795,36 @@ def on_files(files, config):
     return files
 
 
+def main_job_cost() -> str:
+    """What the main job cost when the agents benchmark last ran it whole (its first run in
+    docs/data/agents.json), dated, with its command and machine."""
+    results = benchmark()
+    if results is None:
+        return "No measurement yet (`docs/data/agents.json`)."
+    run = results["runs"][0]
+    m = run["machine"]
+    return (
+        f"The agents benchmark ran it whole with {run['episodes']} episodes per agent in "
+        f"{run['wall_s'] / 60:.0f} minutes on {m['cores']} cores ({m['cpu']}), measured "
+        f"{run['finished'][:10]} by `{run['command']}`; every table of it is on the "
+        f"[agents benchmark](benchmark.md) page.\n\n"
+        + data().staleness(run.get("commit"), run["finished"])
+    )
+
+
+def data():
+    """scripts/docs_data.py: the data files' ages and the learning table."""
+    return sibling("docs_data")
+
+
 def on_page_markdown(markdown, page, config, files):
-    """The home page's environment gallery, from the registry, and the source's citation."""
+    """The pages' rendered data (the learning benchmark's table, the main job's cost), the
+    home page's environment gallery, from the registry, and the source's citation."""
+    if page.file.src_uri == "learning.md":
+        return markdown.replace("<!-- data: learning -->", data().learning_section())
     if page.file.src_uri != "index.md":
         return markdown
+    markdown = markdown.replace("<!-- data: main job -->", main_job_cost())
     markdown = markdown.replace("<!-- source -->", guides().citation())
     cells = [
         f'<a class="env-card" href="envs/{slug(i)}/"><img src="assets/envs/{slug(i)}.gif" '

@@ -188,7 +188,7 @@ def model_section(
         lines += [display(c, rhs=" = 0") + "\n" for c in spec.constraints]
     if model.derived.outputs:
         lines += ["", "Outputs:", ""]
-        lines += [f"- `{k}`: $ {vlatex(v)} $" for k, v in model.derived.outputs.items()]
+        lines += [f"- `{k}`: ${vlatex(v).strip()}$" for k, v in model.derived.outputs.items()]
     return "\n".join(lines) + "\n"
 
 

@@ -1,5 +1,5 @@
-"""The hand-written pages' snippets run as written: each Python block of the home page and
-the scaling-out page saved as a file and run as a script (as a reader would: a "spawn"
+"""The hand-written pages' snippets run as written: each Python block of the home page, the
+scaling-out page and the README saved as a file and run as a script (as a reader would: a "spawn"
 worker imports the file, so a missing `if __name__ == "__main__":` guard fails here), and
 each command of the agents guide (at the small budgets the page shows) exits 0. The
 new-system walkthrough has its own test (tests/test_docs.py)."""
@@ -20,7 +20,9 @@ DOCS = ROOT / "docs"
 
 
 def blocks(page: str, language: str) -> list[str]:
-    return re.findall(rf"```{language}\n(.*?)```", (DOCS / page).read_text(encoding="utf-8"), re.S)
+    """The page's fenced blocks in `language`; a page under docs/, or README.md."""
+    path = ROOT / page if page == "README.md" else DOCS / page
+    return re.findall(rf"```{language}\n(.*?)```", path.read_text(encoding="utf-8"), re.S)
 
 
 def _run(args: list[str], cwd: Path, timeout: float) -> subprocess.CompletedProcess:
@@ -28,7 +30,7 @@ def _run(args: list[str], cwd: Path, timeout: float) -> subprocess.CompletedProc
     return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
 
 
-PYTHON_PAGES = ["index.md", "scaling-out.md"]
+PYTHON_PAGES = ["index.md", "scaling-out.md", "README.md"]
 
 
 def test_the_pages_python_blocks_are_found():

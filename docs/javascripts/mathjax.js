@@ -21,7 +21,9 @@ window.MathJax = {
 // Material's instant navigation swaps pages without reloading: typeset each new page
 document$.subscribe(() => {
   if (!window.MathJax.typesetPromise) return;  // first page: MathJax typesets it at startup
-  MathJax.startup.output.clearCache();
+  // the SVG output's global font cache (CHTML's clearCache does not exist on this build)
+  const output = MathJax.startup.output;
+  if (output.clearFontCache) output.clearFontCache();
   MathJax.typesetClear();
   MathJax.texReset();
   MathJax.typesetPromise();

@@ -1,0 +1,154 @@
+"""The benchmarks' data files under docs/data/ and what the site says of their age.
+
+Every measured figure on the site comes from one dated file here (its runs name the date,
+the commit, the machine and the command); a page renders it and says when the code it
+describes (envs/, dynamics/, agents/) changed after the measurement.
+
+    python scripts/docs_data.py learning runs/learning/results.csv [--command "..."]
+
+stores a learning benchmark's results.csv (`benchmarks/learning.py`) as
+docs/data/learning.json with today's date, the checkout's commit and the machine, which
+the learning page then renders: a new result lands without editing prose.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "docs" / "data"
+LEARNING = DATA / "learning.json"
+CODE = ("envs", "dynamics", "agents")  # the code a measurement describes
+
+
+def _git(*args: str) -> str | None:
+    try:
+        done = subprocess.run(
+            ["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=30, check=False
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return done.stdout.strip() if done.returncode == 0 and done.stdout.strip() else None
+
+
+def head_commit() -> str | None:
+    return _git("rev-parse", "HEAD")
+
+
+def code_change() -> tuple[str, str] | None:
+    """(commit, ISO date) of the last commit that touched envs/, dynamics/ or agents/; None
+    outside a git checkout."""
+    line = _git("log", "-1", "--format=%H %cI", "--", *CODE)
+    return tuple(line.split(" ", 1)) if line else None  # type: ignore[return-value]
+
+
+def staleness(commit: str | None, date: str | None) -> str:
+    """A one-line warning when the code changed after a measurement ('' when it did not, or
+    when no git history says). With the run's commit: is the last code change among its
+    ancestors; without one (older files): is it dated after the run."""
+    change = code_change()
+    if change is None:
+        return ""
+    last, when = change
+    if commit:
+        if _is_ancestor(last, commit):
+            return ""
+        measured = f"at commit {commit[:10]}"
+    elif date:
+        if when[:19] <= date[:19].replace(" ", "T"):
+            return ""
+        measured = f"on {date[:10]} (no commit recorded)"
+    else:
+        measured = "at an unrecorded date"
+    return (
+        f"!!! warning \"Older than the code\"\n    Measured {measured}; `envs/`, `dynamics/` "
+        f"or `agents/` changed since (last at commit {last[:10]}, {when[:10]}): rerun its "
+        f"command to refresh it.\n"
+    )
+
+
+def _is_ancestor(ancestor: str, commit: str) -> bool:
+    try:
+        done = subprocess.run(
+            ["git", "merge-base", "--is-ancestor", ancestor, commit],
+            cwd=ROOT, capture_output=True, timeout=30, check=False,
+        )  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0
+
+
+def learning_section() -> str:
+    """The learning benchmark's table from docs/data/learning.json, dated, in the
+    benchmark's own format (benchmarks/learning.table)."""
+    refresh = (
+        "```bash\npython benchmarks/learning.py --seeds 0,1,2 --out runs/learning\n"
+        'python scripts/docs_data.py learning runs/learning/results.csv --command "..."\n```\n'
+    )
+    if not LEARNING.exists():
+        return (
+            "No learning results file (`docs/data/learning.json`) yet; the figures of past "
+            "rounds are in the [results log](results-log.md). To measure and publish:\n\n"
+            + refresh
+        )
+    data = json.loads(LEARNING.read_text(encoding="utf-8"))
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.learning import table
+
+    run = data["run"]
+    text = table(data["rows"], float(run.get("budget_s", 600)), "").strip()
+    where = f"{run['machine'].get('cores', '?')} cores, {run['machine'].get('cpu', '?')}"
+    return "\n".join([
+        staleness(run.get("commit"), run.get("date")),
+        f"Measured {run['date'][:10]} at commit {str(run.get('commit'))[:10]} on {where}, "
+        f"by `{run['command']}`.",
+        "",
+        text,
+        "",
+        "To refresh:",
+        "",
+        refresh,
+    ])  # fmt: skip
+
+
+def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:
+    """docs/data/learning.json from a learning benchmark's results.csv files."""
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.baselines import machine
+    from benchmarks.learning import read_rows
+    from dynamics.files import write_atomic
+
+    data = {
+        "run": {
+            "command": command,
+            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "commit": head_commit(),
+            "machine": machine(),
+            "budget_s": budget_s,
+        },
+        "rows": read_rows(csvs),
+    }
+    write_atomic(LEARNING, json.dumps(data, indent=1) + "\n")
+    return LEARNING
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="kind", required=True)
+    learning = sub.add_parser("learning", help="store a learning benchmark's results.csv")
+    learning.add_argument("csv", nargs="+", help="results.csv files of benchmarks/learning.py")
+    learning.add_argument("--command", default="python benchmarks/learning.py",
+                          help="the benchmark's command line, as run")  # fmt: skip
+    learning.add_argument("--budget", type=float, default=600.0, help="its budget, seconds")
+    args = parser.parse_args(argv)
+    print(store_learning(args.csv, args.command, args.budget))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
