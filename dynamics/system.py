@@ -14,7 +14,6 @@ skip this, for the environments' hot path.
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from types import ModuleType
 
@@ -184,7 +183,7 @@ class System:
     def _solve(self, t, x, u):
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], self.n_q + self.n_c))
-        compiled = _kernel_compiled(self._m.accelerations_batch)
+        compiled = cache.compiled(self._m.accelerations_batch)
         if len(X) > INTERPRETED_ROWS or not all(
             self._interpreted(_accelerations_py, T[b], X[b], U[b], out[b], compiled=compiled)
             for b in range(len(X))
@@ -211,66 +210,42 @@ class System:
         return out.reshape(lead + (self.state_size,))
 
     def step_unchecked(
-        self,
-        T,
-        X,
-        U,
-        dt: float,
-        substeps: int,
-        out: np.ndarray,
-        method: str = "rk4",
-        num_threads: int = 1,
-    ) -> None:
+        self, T, X, U, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
+        num_threads: int = 1, *, P=None, W=None, alone_below: int = stepping.LANES_FROM,
+    ) -> None:  # fmt: skip
         """`step` on contiguous float64 rows T (N,), X (N, 2n), U (N, n_u) into `out`,
-        without argument checks: the environments' hot path. Blocks of BLOCK rows are
-        spread over `num_threads` threads (numba's); the result is the same bit for bit
-        for any number of threads.
+        without argument checks: the environments' hot path. P: the parameter values, one
+        vector for every row (len(parameters),) or each row's own (N, len(parameters)),
+        columns in the order of `parameters` (None: the system's); a row steps bit for bit
+        as it would in a System with its values. W: generalised forces (N, n_q) added to
+        the equations' forcing and held over dt (external pushes, see `point_forces`;
+        W = 0 steps bit for bit as None), on one thread. Without W, blocks of BLOCK rows
+        are spread over `num_threads` threads (numba's), and fewer than `alone_below` rows
+        step one at a time (`erk_row`, as the lanes would): the same result bit for bit.
 
         Never raises for a bad row: where the integration fails (a singular mass/constraint
-        matrix, an overflow) that row of `out` holds NaN or inf; the caller must check."""
+        matrix, an overflow) that row of `out` holds NaN or inf; the caller must check.
+        Unchecked (P and W too)."""
         a, w, c = method_tableau(method)
         h = dt / substeps
-        if num_threads > 1 and X.shape[0] > BLOCK:
+        p, rows_p = (self._p, None) if P is None else (P, None) if P.ndim == 1 else (P[0], P)
+        if W is None and num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            model = stepping.table(self._m, "derivative_lanes")
-            stepping.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out,
-                                        BLOCK, model)  # fmt: skip
-        else:
-            self._blocks(T, X, U, self._p, None, None, h, substeps, a, w, c, out)
-
-    def step_rows_unchecked(
-        self, T, X, U, P, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
-        num_threads: int = 1,
-    ) -> None:  # fmt: skip
-        """`step_unchecked` with each row's own parameter values P (N, len(parameters)),
-        contiguous float64, columns in the order of `parameters`: a row steps bit for bit
-        as it would in a System with those values. Unchecked (P too)."""
-        a, w, c = method_tableau(method)
-        h = dt / substeps
-        if num_threads > 1 and X.shape[0] > BLOCK:
-            numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            model = stepping.table(self._m, "derivative_lanes_p")
-            stepping.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK,
+            name = "derivative_lanes" if rows_p is None else "derivative_lanes_p"
+            model = stepping.table(self._m, name)
+            stepping.erk_batch_parallel(T, X, U, p, rows_p, h, substeps, a, w, c, out, BLOCK,
                                         model)  # fmt: skip
         else:
-            self._blocks(T, X, U, P[0], P, None, h, substeps, a, w, c, out)
+            self._blocks(T, X, U, p, rows_p, W, h, substeps, a, w, c, out, alone_below)
 
-    def step_pushed_unchecked(
-        self, T, X, U, P, W, dt: float, substeps: int, out: np.ndarray, method: str = "rk4"
-    ) -> None:
-        """`step_rows_unchecked` on one thread with the generalised forces W (N, n_q) added
-        to the equations' forcing and held over dt (external pushes, see `point_forces`);
-        W = 0 steps bit for bit as `step_rows_unchecked`. Unchecked."""
-        tableau = method_tableau(method)
-        self._blocks(T, X, U, P[0], P, W, dt / substeps, substeps, *tableau, out)
-
-    def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out) -> None:
+    def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out, alone_below=None) -> None:
         """`stepping.erk_rows` over all rows, BLOCK rows a call: a loop here rather than a
         compiled one, whose compilation re-optimised all of erk_rows for a few microseconds
         a step saved; fewer than LANES_FROM rows without pushes by `erk_row`, one at a time
-        (the same result)."""
+        (the same result), or fewer than `alone_below`."""
         n = X.shape[0]
-        if n < stepping.LANES_FROM and W is None:  # so few rows: one at a time, as erk_rows would
+        alone_below = stepping.LANES_FROM if alone_below is None else alone_below
+        if n < alone_below and W is None:  # so few rows: one at a time, as erk_rows would
             model = stepping.table(self._m, "derivative_lanes")
             for r in range(n):
                 stepping.erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out,
@@ -473,19 +448,8 @@ _interpreted_points: dict[str, int] = {}
 
 
 def _compiled(m) -> bool:
-    """True when module m's linearisation kernel is compiled (`_kernel_compiled`)."""
-    return _kernel_compiled(m.linear_terms)
-
-
-def _kernel_compiled(kernel) -> bool:
-    """True when `kernel` is compiled: in this process, or in numba's on-disk cache (its
-    index file; then using it costs a file read)."""
-    if kernel.signatures:
-        return True
-    try:
-        return os.path.exists(kernel._cache._cache_file._index_path)
-    except AttributeError:  # another numba's private layout: count it as not compiled
-        return False
+    """True when module m's linearisation kernel is compiled (`cache.compiled`)."""
+    return cache.compiled(m.linear_terms)
 
 
 def _accelerations_py(m, t, x, u, p, z) -> None:

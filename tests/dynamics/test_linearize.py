@@ -111,7 +111,7 @@ def test_interpreted_accelerations_equal_the_compiled_kernel(name, monkeypatch):
     system, xs = random_states(name, 5, seed=31)
     us = np.random.default_rng(32).normal(size=(5, system.n_u))
     monkeypatch.setattr(system_module, "_interpreted_points", {})
-    monkeypatch.setattr(system_module, "_kernel_compiled", lambda kernel: False)
+    monkeypatch.setattr(system_module.cache, "compiled", lambda kernel: False)
     program = system_module._accelerations_py
     ran = []
     counted = lambda *a: ran.append(1) or program(*a)  # noqa: E731

@@ -71,7 +71,7 @@ def test_the_store_writes_each_copy_s_parameters_and_the_perturber_reads_them():
     column = list(rt.system.parameters).index("m2")
     assert store.P[:, column].tolist() == [0.6, 0.7, 0.8] == info["params"]["m2"].tolist()
     assert store.pins[:, column].all() and store.drawn.all()
-    assert rt._model_params is store.P  # the array the fused step and the perturber get
+    assert store.model_params is store.P  # the array the step and the perturber get
     assert not hasattr(rt.perturber, "P")
 
 

@@ -138,7 +138,7 @@ def test_task_functions_read_each_copy_s_own_parameters(fused):
     if fused:
         bound(vec)
     else:
-        vec.unwrapped._rt._fused = None
+        vec.unwrapped._rt.stepper.separate()
     values = np.full(n, 1.0)
     values[row] = 1.1
     vec.reset(seed=10, options={"params": {"l": values}})
