@@ -20,7 +20,7 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from . import cache, checks, physical, rows, stepping
+from . import cache, checks, interpreted, physical, rows, stepping
 from .methods import METHODS
 
 
@@ -184,8 +184,9 @@ class System:
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], self.n_q + self.n_c))
         compiled = cache.compiled(self._m.accelerations_batch)
-        if len(X) > INTERPRETED_ROWS or not all(
-            self._interpreted(_accelerations_py, T[b], X[b], U[b], out[b], compiled=compiled)
+        program = interpreted.accelerations_py
+        if len(X) > interpreted.INTERPRETED_ROWS or not all(
+            self._interpreted(program, T[b], X[b], U[b], out[b], compiled=compiled)
             for b in range(len(X))
         ):
             self._m.accelerations_batch(T, X, U, self._p, out)
@@ -377,27 +378,14 @@ class System:
         k = self.n_q + self.n_c
         A = np.empty((k, k + 1))
         r = np.empty(k)
-        if not self._interpreted(_kkt_py, T[0], X[0], U[0], A, r):
+        if not self._interpreted(interpreted.kkt_py, T[0], X[0], U[0], A, r):
             self._m.kkt(T[0], X[0], U[0], self._p, A, r)
         self._finite("kkt", np.concatenate([A[:, :k].ravel(), r])[None, :], T, X, U)
         return A[:, :k], r
 
     def _interpreted(self, program, t, x, u, *out, compiled: bool | None = None) -> bool:
-        """Run `program` (the generated kernels' Python functions) on one point, while the
-        model's compiled kernel is not in use yet (`INTERPRETED_POINTS`; `compiled`: whether
-        it is, by default whether the linearisation is): True if it filled `out`, False
-        where Python's arithmetic raised (a division by zero, an overflow) and the compiled
-        kernels must give their NaN or inf instead."""
-        used = _interpreted_points.get(self._m.KEY, 0)
-        if used >= INTERPRETED_POINTS or (_compiled(self._m) if compiled is None else compiled):
-            return False
-        _interpreted_points[self._m.KEY] = used + 1
-        try:
-            with np.errstate(all="ignore"):
-                program(self._m, float(t), x.tolist(), u.tolist(), self._p.tolist(), *out)
-        except (ArithmeticError, ValueError):
-            return False
-        return True
+        """`interpreted.run` of `program` on one point with this system's parameters."""
+        return interpreted.run(self._m, self._p, program, t, x, u, *out, compiled=compiled)
 
     def linearize(self, x0, u0=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) with d(dx)/dt = A dx + B du about (x0, u0), from symbolic Jacobians."""
@@ -412,7 +400,7 @@ class System:
         z = np.empty(k)
         Jx = np.empty((k, 2 * n))
         Ju = np.empty((k, self.n_u))
-        if not self._interpreted(_linear_terms_py, T[0], X[0], U[0], Am, z, Jx, Ju):
+        if not self._interpreted(interpreted.linear_terms_py, T[0], X[0], U[0], Am, z, Jx, Ju):
             self._m.linear_terms(T[0], X[0], U[0], self._p, Am, z, Jx, Ju)
         terms = np.concatenate([z, Jx.ravel(), Ju.ravel()])[None, :]
         self._finite("linearize", terms, T, X, U)
@@ -425,50 +413,6 @@ class System:
         B = np.zeros((2 * n, self.n_u))
         B[n:, :] = dz[:n, 2 * n :]
         return A, B
-
-
-INTERPRETED_POINTS = 5000
-"""While a model's linearisation kernel is not compiled (`_compiled`), its first points in a
-process (`System.linearize`, `System.kkt`) run its generated code as plain Python: the same
-arithmetic in the same order (the same numbers up to the last bit of a power, which Python
-takes from libm's `pow` and numba as products; tests/dynamics/test_linearize.py), without
-compiling it. So do `System.accelerations` and `multipliers` of at most `INTERPRETED_ROWS`
-rows while their kernel is not compiled: the checks an env runs when it is made (every
-input moves something, the operating input) then compile nothing the first step does not
-need. A handful of points (an LQR design, the bicycle's benchmark matrices) then
-costs milliseconds instead of compiling the Jacobians (the bicycle's 4,500 lines: 40 s of
-CPU). A point interpreted costs about 1e-4 of that compilation (two-link arm 0.2 ms
-against 1.5 s, the bicycle 3-6 ms against 40 s), so a planner's many linearisations switch
-to the compiled kernel after this many, having spent at most about half of it."""
-
-INTERPRETED_ROWS = 64
-"""The largest batch of `System.accelerations` that may run as Python (see above)."""
-
-_interpreted_points: dict[str, int] = {}
-
-
-def _compiled(m) -> bool:
-    """True when module m's linearisation kernel is compiled (`cache.compiled`)."""
-    return cache.compiled(m.linear_terms)
-
-
-def _accelerations_py(m, t, x, u, p, z) -> None:
-    """`accelerations` of module m through the Python functions of its kernels."""
-    A = np.empty((m.K, m.K + 1))  # a spare column for solve
-    m.kkt.py_func(t, x, u, p, A, z)
-    m.solve.py_func(A, z)
-
-
-def _kkt_py(m, t, x, u, p, A, r) -> None:
-    m.kkt.py_func(t, x, u, p, A, r)
-
-
-def _linear_terms_py(m, t, x, u, p, A, z, Jx, Ju) -> None:
-    """`linear_terms` of module m through the Python functions of its kernels."""
-    m.kkt.py_func(t, x, u, p, A, z)
-    m.solve.py_func(A, z)
-    m.jacobians.py_func(t, x, u, p, z.tolist(), Jx, Ju)
-    m.kkt_matrix.py_func(t, x, p, A)
 
 
 BLOCK = 64
