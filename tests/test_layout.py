@@ -13,7 +13,9 @@ from envs.step import Step
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("dynamics", "envs", "agents")
 
-PRIVATE_WRITE = re.compile(r"\b(?!self\b|cls\b)[A-Za-z_]\w*\._(?!_)\w+(\[[^]]*\])?\s*(=|\+=|-=)(?!=)")
+PRIVATE_WRITE = re.compile(
+    r"\b(?!self\b|cls\b)[A-Za-z_]\w*\._(?!_)\w+(\[[^]]*\])?\s*(=|\+=|-=)(?!=)"
+)
 """`obj._name = ...` (or `obj._name[...] = ...`) with obj another object than self."""
 
 ALLOWED = {"dynamics/stepping.py": "the kernels' address table kept on a generated module"}
