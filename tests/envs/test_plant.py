@@ -49,6 +49,7 @@ def test_a_parameter_is_compiled_in_once(monkeypatch):
     assert env._rt.parameters.model_params.tolist() == env.system.parameter_vector.tolist()
 
 
+@pytest.mark.filterwarnings("ignore:Task .TwoLinkArm.:RuntimeWarning")  # input limits of m2
 def test_observed_parameters_are_context_features_of_the_compiled_observation():
     plant = Plant.build(arm.TASK, {"randomize": {"m2": (0.5, 2.0)}, "observe_params": True})
     ops = plant.ops

@@ -15,7 +15,6 @@ import envs
 from agents.control.lqr_policy import LQRPolicy
 from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
-from envs.parameters import constant_inputs
 from envs.randomize import Uniform
 from tests.binding import bound
 
@@ -171,7 +170,7 @@ def test_constants_are_computed_at_each_copy_s_values():
     assert p_rows[1] == single.unwrapped.plant.p  # every constant, recomputed
     assert p_rows.half_travel[0] == gym.make(CRANK).unwrapped.plant.p.half_travel
     # recomputed only where a parameter they read (R, l, h: the linkage) moved
-    read = constant_inputs(vec.unwrapped.plant)
+    read = vec.unwrapped.plant.constant_inputs
     assert [k for k, r in zip(vec.unwrapped.system.parameters, read) if r] == ["R", "l", "h"]
     for _ in range(30):
         a = np.full(vec.action_space.shape, 0.3, dtype=np.float32)
@@ -190,3 +189,18 @@ def test_a_task_function_that_cannot_read_p_by_row_keeps_it_nominal_and_is_named
     with pytest.warns(RuntimeWarning, match="task function 'height' depend.* randomised 'l'"):
         env = LagrangianEnv(task, randomize={"l": (0.9, 1.1)})
     assert not env._rt.parameters.follows and env._rt.parameters.records is None
+
+
+def test_the_nominal_warning_compares_supports_where_the_plant_is_built():
+    """The store builds no plant: whether the record follows each copy is the plant's fact,
+    found by `Plant.build`; a plant keeps no second copy of its parameters by name."""
+    import dataclasses
+    from pathlib import Path
+
+    from envs import parameters
+    from envs.plant import Plant
+
+    source = Path(parameters.__file__).read_text(encoding="utf-8")
+    assert "Plant.build" not in source and "from .plant" not in source
+    fields = {f.name for f in dataclasses.fields(Plant)}
+    assert "params" not in fields and {"follows", "constant_inputs"} <= fields
