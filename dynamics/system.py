@@ -30,11 +30,7 @@ def check_parameters(
     """Parameter vector from defaults and overrides, with errors that name the problem."""
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
-        if key not in values:
-            raise ValueError(
-                f"Unknown parameter {key!r} for {model_name}.{checks.did_you_mean(key, names)} "
-                f"Known: {', '.join(names)}."
-            )
+        checks.parameter_name(key, names, model_name)
         values[key] = checks.parameter(model_name, key, value)
     for key, pos in zip(names, positive):
         if pos and not values[key] > 0:
