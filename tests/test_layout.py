@@ -51,3 +51,38 @@ def test_system_offers_one_unchecked_step():
 def test_the_step_offers_one_call():
     public = [n for n in vars(Step) if not n.startswith("_") and callable(vars(Step)[n])]
     assert sorted(public) == ["bind", "evaluate", "rows", "separate", "step"]
+
+
+def _imports(path: Path) -> set[str]:
+    """The modules `path` imports (relative imports resolved), anywhere in it."""
+    import ast
+
+    rel = path.relative_to(ROOT).with_suffix("")
+    package = rel.parts[:-1]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            base = list(package[: len(package) - node.level + 1]) if node.level else []
+            module = ".".join([*base, *(node.module or "").split(".")]).strip(".")
+            out |= {f"{module}.{a.name}" for a in node.names}
+            if node.module:  # `from . import x` imports x, not the package
+                out.add(module)
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+    return out
+
+
+def _reaches(folder: str, target: str) -> list[str]:
+    return [
+        p.relative_to(ROOT).as_posix()
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        if any(m == target or m.startswith(target + ".") for m in _imports(p))
+    ]
+
+
+def test_the_wings_arrows_point_one_way():
+    """Scoring reads learning (the probe, the run directories); learning never imports
+    scoring. envs/__init__ imports envs.docs; envs.docs never imports the package back."""
+    assert _reaches("agents/learning", "agents.scoring") == []
+    assert _reaches("agents/scoring", "agents.learning") != []
+    assert "envs" not in _imports(ROOT / "envs" / "docs.py")

@@ -175,10 +175,10 @@ def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
     """`venv` with the reward scale, LQR shaping and success bonus the hyperparameters ask
     for (agents.learning.shaping; the registered reward is untouched), or `venv` itself. Warns first
     when the task's reward is flat inside the tolerance of its success set
-    (agents.scoring.diagnosis)."""
+    (agents.learning.flat)."""
     from ..common import task_of
-    from ..scoring.diagnosis import warn_if_flat
     from .defaults import episode_steps
+    from .flat import warn_if_flat
     from .shaping import TaskRewardVecEnv, lqr_potential
 
     scale = float(hp.get("reward_scale", 1.0))

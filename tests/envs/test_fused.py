@@ -14,7 +14,8 @@ import pytest
 from numba import njit
 
 import envs
-from envs import arm, buffers
+from envs import buffers
+from envs.tasks import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.binding import bound

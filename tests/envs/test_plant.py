@@ -12,7 +12,8 @@ import pytest
 
 import dynamics
 import envs
-from envs import arm, disk, observation
+from envs import observation
+from envs.tasks import arm, disk
 from envs.plant import Plant
 
 ARM = "Lagrange/TwoLinkArm-v1"

@@ -20,7 +20,7 @@ from tests.binding import bound
 
 ARM = "Lagrange/TwoLinkArm-v1"
 DEFAULT = {"Ibar1": (0.05, 0.1)}
-TASK = dataclasses.replace(envs.arm.TASK, randomize=DEFAULT)
+TASK = dataclasses.replace(envs.tasks.arm.TASK, randomize=DEFAULT)
 
 
 def test_a_task_s_randomize_is_the_default_the_option_replaces_or_turns_off():
@@ -53,11 +53,11 @@ def test_a_task_s_randomize_is_the_default_the_option_replaces_or_turns_off():
 )
 def test_a_task_s_bad_randomize_is_refused_when_declared(randomize, message):
     with pytest.raises(DeclarationError, match=re.escape(message)):
-        dataclasses.replace(envs.arm.TASK, randomize=randomize)
+        dataclasses.replace(envs.tasks.arm.TASK, randomize=randomize)
 
 
 def test_a_task_s_randomize_naming_no_parameter_is_refused_when_the_env_is_made():
-    task = dataclasses.replace(envs.arm.TASK, randomize={"m22": (0.5, 1.0)})
+    task = dataclasses.replace(envs.tasks.arm.TASK, randomize={"m22": (0.5, 1.0)})
     with pytest.raises(ValueError, match="Did you mean 'm2'"):
         LagrangianEnv(task)
 
@@ -105,9 +105,9 @@ def test_a_given_value_outside_the_support_is_clipped_in_the_observation_only():
 
 
 def test_observed_parameters_appear_in_the_observation_table():
-    table = envs.docs.describe(envs.arm.TASK, randomize=DEFAULT, observe_params=True)
+    table = envs.docs.describe(envs.tasks.arm.TASK, randomize=DEFAULT, observe_params=True)
     assert "| 14 | param Ibar1 | 0.05 | 0.1 |  |" in table
-    assert "param" not in envs.docs.describe(envs.arm.TASK)
+    assert "param" not in envs.docs.describe(envs.tasks.arm.TASK)
 
 
 @pytest.mark.parametrize(
@@ -182,7 +182,7 @@ def test_a_task_function_that_cannot_read_p_by_row_keeps_it_nominal_and_is_named
     def height(x, a, goal, p):  # a scalar use of p: one record for all rows only
         return np.full(len(x.theta1), float(p.l) - 1.0)
 
-    base = envs.acrobot.TASK_V2
+    base = envs.tasks.acrobot.TASK_V2
     terms = tuple(dataclasses.replace(t, fn=height) if t.name == "height" else t
                   for t in base.terms)  # fmt: skip
     task = dataclasses.replace(base, name="AcrobotScalarP", terms=terms)
