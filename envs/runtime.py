@@ -36,7 +36,7 @@ from .observation import observe
 from .parameters import ParameterRows
 from .perturb import Perturber
 from .plant import Plant
-from .step import NonFiniteActions, Step, shared_and_rows, wait_for_background
+from .step import NonFiniteActions, Step, wait_for_background
 
 ARRAYS = ("X", "U", "T", "G", "A", "O", "terms", "R", "steps", "terminated", "success",
           "diverged")  # fmt: skip
@@ -94,8 +94,8 @@ class Runtime:
         self._of_state = warm(state_batch, *self._state_args(self.arrays.E, stepping.AT_ENERGY))
 
     def _state_args(self, out, kernel) -> tuple:
-        a, store = self.arrays, self.parameters
-        return (a.T, a.X, *shared_and_rows(store.model_params), out, self._table, kernel)
+        a, store = self.arrays, self.parameters  # the shared vector, and every row's or None
+        return a.T, a.X, store.nominal, store.P, out, self._table, kernel
 
     # pickling: the step's numba dispatchers are rebuilt (from numba's cache), not pickled
     def __getstate__(self):
@@ -194,11 +194,12 @@ class Runtime:
         if actions.dtype != np.float64:  # one type for the compiled step (`compiled.actions_type`);
             actions = actions.astype(np.float64)  # float32's values exactly
         store, perturbed = self.parameters, ()
+        model_params = store.model_params
         if self.perturber is not None:  # the inputs applied and the pushes (envs.perturb)
             if not np.isfinite(actions).all():
                 raise NonFiniteActions("actions contain NaN or inf")
-            perturbed = self.perturber.before_step(actions, self.T, self.X, store.model_params)
-        diverged = self.stepper.step(actions, store.model_params, store.task_params,
+            perturbed = self.perturber.before_step(actions, self.T, self.X, model_params)
+        diverged = self.stepper.step(actions, model_params, store.task_params,
                                      -1 if horizon is None else horizon, perturbed)  # fmt: skip
         if perturbed:
             self.perturber.observe(self.arrays.obs64, self.O)
@@ -216,8 +217,9 @@ class Runtime:
 
     def energy_of_row0(self) -> float:
         """T + V of the first row, J (the single env's cheap path)."""
-        self._of_state(*self._state_args(self.arrays.E, stepping.AT_ENERGY))
-        kinetic, potential = self.arrays.E0.tolist()
+        a, store = self.arrays, self.parameters
+        self._of_state(a.T, a.X, store.nominal, store.P, a.E, self._table, stepping.AT_ENERGY)
+        kinetic, potential = a.E0.tolist()
         return kinetic + potential
 
     def constraint_residual(self) -> np.ndarray:
