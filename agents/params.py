@@ -27,7 +27,7 @@ import math
 import warnings
 from pathlib import Path
 
-from dynamics.checks import unknown
+from dynamics.checks import UnknownParameterError, parameter_name
 
 from .common import UserError, task_of
 
@@ -91,9 +91,10 @@ def load(path: str | Path, env_id: str) -> dict[str, float]:
     known = model_parameters(env_id)
     values = {}
     for name, value in data.items():
-        if name not in known:
-            where = f"--params: {path}"
-            raise UserError(str(unknown(f"parameter of {env_id}'s model", name, known, where)))
+        try:
+            parameter_name(name, known, f"{env_id}'s model", f"--params: {path}")
+        except UnknownParameterError as exc:
+            raise UserError(str(exc)) from None
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
         try:
             number = float(value) if ok else math.nan

@@ -14,7 +14,7 @@ the first round by one unmeasured run per tree. The process reports the seconds 
 the first `step`, the CPU seconds of the three together (on a loaded machine the wall
 clock waits for other processes; CPU time does not; a thread compiling in the background
 counts), and the seconds (wall and CPU) until the env's fused step is bound (`fused`,
-`fused_cpu`: a tree that compiles it in the background, `envs.compiled.fused_for`, steps
+`fused_cpu`: a tree that compiles it in the background, `envs.step.Step`, steps
 by separate calls until then, with the same results).
 
 `--baseline PATH` measures another checkout of this project (for example the commit before
@@ -86,9 +86,12 @@ t3 = time.perf_counter()
 env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
 t4, c4 = time.perf_counter(), time.process_time()
 try:  # the fused step, where it compiles in the background
-    from envs.compiled import wait_for_background
-except ImportError:  # a tree that compiles it before the first step returns
-    wait_for_background = None
+    from envs.step import wait_for_background
+except ImportError:
+    try:  # a tree before envs.step
+        from envs.compiled import wait_for_background
+    except ImportError:  # a tree that compiles it before the first step returns
+        wait_for_background = None
 if wait_for_background is not None:
     wait_for_background()
 t5, c5 = time.perf_counter(), time.process_time()

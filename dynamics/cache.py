@@ -502,3 +502,16 @@ class _lock:
     def __exit__(self, *exc):
         if self.fd is not None:
             os.close(self.fd)  # releases the lock
+
+
+def compiled(kernel) -> bool:
+    """True when numba dispatcher `kernel` is compiled: in this process, or in numba's
+    on-disk cache (its index file exists; then using it costs a file read). The one place
+    that reads numba's cache layout, which numba offers no public call for; another
+    numba's layout counts as not compiled."""
+    if kernel.signatures:
+        return True
+    try:
+        return os.path.exists(kernel._cache._cache_file._index_path)
+    except AttributeError:
+        return False

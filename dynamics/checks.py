@@ -60,6 +60,31 @@ def unknown(what: str, name, known: Iterable, where: str = "", n: int = 1) -> Va
     )
 
 
+class UnknownParameterError(ValueError):
+    """`name` is not a parameter of `owner` (a model), whose parameters are `known`: raised
+    by `parameter_name` alone, so callers catch the type, not a message."""
+
+    def __init__(self, name, known: Iterable, owner: str, where: str = "", options=()):
+        self.name, self.known, self.owner = name, tuple(str(k) for k in known), owner
+        head = f"{where}: unknown" if where else "Unknown"
+        what = "argument" if options else "parameter"  # options: other names allowed there
+        also = f"{', '.join(options)} and the parameters of {owner}: " if options else ""
+        super().__init__(
+            f"{head} {what} {name!r}{'' if options else f' of {owner}'}."
+            f"{did_you_mean(name, (*self.known, *options))} Known: {also}"
+            f"{', '.join(self.known)}."
+        )
+
+
+def parameter_name(name, known: Iterable, owner: str, where: str = "") -> str:
+    """`name`, or UnknownParameterError unless it is one of `known`, the parameters of
+    model `owner` (`where`: the argument or option that gave it)."""
+    known = tuple(known)
+    if name not in known:
+        raise UnknownParameterError(name, known, owner, where)
+    return name
+
+
 # ---- numbers -------------------------------------------------------------------------------
 def _label(owner: str, label: str) -> str:
     return f"{owner}: {label}" if owner else label

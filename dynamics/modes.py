@@ -84,8 +84,7 @@ def mass_and_stiffness(model, q0, **params) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{model.name}: expected q0 of shape ({len(q)},), got {q0.shape}.")
     values = {str(k): v for k, v in model.parameters.items()}
     for key, value in params.items():
-        if key not in values:
-            raise ValueError(f"Unknown parameter {key!r} for {model.name}.")
+        checks.parameter_name(key, values, model.name)
         values[key] = checks.parameter(model.name, key, value)
     plain = [sp.Symbol(f"q{i}") for i in range(len(q))]
     subs = {qi.diff(t): 0 for qi in q} | dict(zip(q, plain))

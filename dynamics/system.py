@@ -14,14 +14,13 @@ skip this, for the environments' hot path.
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from types import ModuleType
 
 import numba
 import numpy as np
 
-from . import cache, checks, physical, rows, stepping
+from . import cache, checks, interpreted, physical, rows, stepping
 from .methods import METHODS
 
 
@@ -31,11 +30,7 @@ def check_parameters(
     """Parameter vector from defaults and overrides, with errors that name the problem."""
     values = dict(zip(names, map(float, defaults)))
     for key, value in given.items():
-        if key not in values:
-            raise ValueError(
-                f"Unknown parameter {key!r} for {model_name}.{checks.did_you_mean(key, names)} "
-                f"Known: {', '.join(names)}."
-            )
+        checks.parameter_name(key, names, model_name)
         values[key] = checks.parameter(model_name, key, value)
     for key, pos in zip(names, positive):
         if pos and not values[key] > 0:
@@ -184,9 +179,10 @@ class System:
     def _solve(self, t, x, u):
         T, X, U, lead = self._batch(t, x, u)
         out = np.empty((X.shape[0], self.n_q + self.n_c))
-        compiled = _kernel_compiled(self._m.accelerations_batch)
-        if len(X) > INTERPRETED_ROWS or not all(
-            self._interpreted(_accelerations_py, T[b], X[b], U[b], out[b], compiled=compiled)
+        compiled = cache.compiled(self._m.accelerations_batch)
+        program = interpreted.accelerations_py
+        if len(X) > interpreted.INTERPRETED_ROWS or not all(
+            self._interpreted(program, T[b], X[b], U[b], out[b], compiled=compiled)
             for b in range(len(X))
         ):
             self._m.accelerations_batch(T, X, U, self._p, out)
@@ -211,66 +207,42 @@ class System:
         return out.reshape(lead + (self.state_size,))
 
     def step_unchecked(
-        self,
-        T,
-        X,
-        U,
-        dt: float,
-        substeps: int,
-        out: np.ndarray,
-        method: str = "rk4",
-        num_threads: int = 1,
-    ) -> None:
+        self, T, X, U, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
+        num_threads: int = 1, *, P=None, W=None, alone_below: int = stepping.LANES_FROM,
+    ) -> None:  # fmt: skip
         """`step` on contiguous float64 rows T (N,), X (N, 2n), U (N, n_u) into `out`,
-        without argument checks: the environments' hot path. Blocks of BLOCK rows are
-        spread over `num_threads` threads (numba's); the result is the same bit for bit
-        for any number of threads.
+        without argument checks: the environments' hot path. P: the parameter values, one
+        vector for every row (len(parameters),) or each row's own (N, len(parameters)),
+        columns in the order of `parameters` (None: the system's); a row steps bit for bit
+        as it would in a System with its values. W: generalised forces (N, n_q) added to
+        the equations' forcing and held over dt (external pushes, see `point_forces`;
+        W = 0 steps bit for bit as None), on one thread. Without W, blocks of BLOCK rows
+        are spread over `num_threads` threads (numba's), and fewer than `alone_below` rows
+        step one at a time (`erk_row`, as the lanes would): the same result bit for bit.
 
         Never raises for a bad row: where the integration fails (a singular mass/constraint
-        matrix, an overflow) that row of `out` holds NaN or inf; the caller must check."""
+        matrix, an overflow) that row of `out` holds NaN or inf; the caller must check.
+        Unchecked (P and W too)."""
         a, w, c = method_tableau(method)
         h = dt / substeps
-        if num_threads > 1 and X.shape[0] > BLOCK:
+        p, rows_p = (self._p, None) if P is None else (P, None) if P.ndim == 1 else (P[0], P)
+        if W is None and num_threads > 1 and X.shape[0] > BLOCK:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            model = stepping.table(self._m, "derivative_lanes")
-            stepping.erk_batch_parallel(T, X, U, self._p, None, h, substeps, a, w, c, out,
-                                        BLOCK, model)  # fmt: skip
-        else:
-            self._blocks(T, X, U, self._p, None, None, h, substeps, a, w, c, out)
-
-    def step_rows_unchecked(
-        self, T, X, U, P, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
-        num_threads: int = 1,
-    ) -> None:  # fmt: skip
-        """`step_unchecked` with each row's own parameter values P (N, len(parameters)),
-        contiguous float64, columns in the order of `parameters`: a row steps bit for bit
-        as it would in a System with those values. Unchecked (P too)."""
-        a, w, c = method_tableau(method)
-        h = dt / substeps
-        if num_threads > 1 and X.shape[0] > BLOCK:
-            numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
-            model = stepping.table(self._m, "derivative_lanes_p")
-            stepping.erk_batch_parallel(T, X, U, P[0], P, h, substeps, a, w, c, out, BLOCK,
+            name = "derivative_lanes" if rows_p is None else "derivative_lanes_p"
+            model = stepping.table(self._m, name)
+            stepping.erk_batch_parallel(T, X, U, p, rows_p, h, substeps, a, w, c, out, BLOCK,
                                         model)  # fmt: skip
         else:
-            self._blocks(T, X, U, P[0], P, None, h, substeps, a, w, c, out)
+            self._blocks(T, X, U, p, rows_p, W, h, substeps, a, w, c, out, alone_below)
 
-    def step_pushed_unchecked(
-        self, T, X, U, P, W, dt: float, substeps: int, out: np.ndarray, method: str = "rk4"
-    ) -> None:
-        """`step_rows_unchecked` on one thread with the generalised forces W (N, n_q) added
-        to the equations' forcing and held over dt (external pushes, see `point_forces`);
-        W = 0 steps bit for bit as `step_rows_unchecked`. Unchecked."""
-        tableau = method_tableau(method)
-        self._blocks(T, X, U, P[0], P, W, dt / substeps, substeps, *tableau, out)
-
-    def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out) -> None:
+    def _blocks(self, T, X, U, p, P, W, h, substeps, a, w, c, out, alone_below=None) -> None:
         """`stepping.erk_rows` over all rows, BLOCK rows a call: a loop here rather than a
         compiled one, whose compilation re-optimised all of erk_rows for a few microseconds
         a step saved; fewer than LANES_FROM rows without pushes by `erk_row`, one at a time
-        (the same result)."""
+        (the same result), or fewer than `alone_below`."""
         n = X.shape[0]
-        if n < stepping.LANES_FROM and W is None:  # so few rows: one at a time, as erk_rows would
+        alone_below = stepping.LANES_FROM if alone_below is None else alone_below
+        if n < alone_below and W is None:  # so few rows: one at a time, as erk_rows would
             model = stepping.table(self._m, "derivative_lanes")
             for r in range(n):
                 stepping.erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out,
@@ -402,27 +374,14 @@ class System:
         k = self.n_q + self.n_c
         A = np.empty((k, k + 1))
         r = np.empty(k)
-        if not self._interpreted(_kkt_py, T[0], X[0], U[0], A, r):
+        if not self._interpreted(interpreted.kkt_py, T[0], X[0], U[0], A, r):
             self._m.kkt(T[0], X[0], U[0], self._p, A, r)
         self._finite("kkt", np.concatenate([A[:, :k].ravel(), r])[None, :], T, X, U)
         return A[:, :k], r
 
     def _interpreted(self, program, t, x, u, *out, compiled: bool | None = None) -> bool:
-        """Run `program` (the generated kernels' Python functions) on one point, while the
-        model's compiled kernel is not in use yet (`INTERPRETED_POINTS`; `compiled`: whether
-        it is, by default whether the linearisation is): True if it filled `out`, False
-        where Python's arithmetic raised (a division by zero, an overflow) and the compiled
-        kernels must give their NaN or inf instead."""
-        used = _interpreted_points.get(self._m.KEY, 0)
-        if used >= INTERPRETED_POINTS or (_compiled(self._m) if compiled is None else compiled):
-            return False
-        _interpreted_points[self._m.KEY] = used + 1
-        try:
-            with np.errstate(all="ignore"):
-                program(self._m, float(t), x.tolist(), u.tolist(), self._p.tolist(), *out)
-        except (ArithmeticError, ValueError):
-            return False
-        return True
+        """`interpreted.run` of `program` on one point with this system's parameters."""
+        return interpreted.run(self._m, self._p, program, t, x, u, *out, compiled=compiled)
 
     def linearize(self, x0, u0=None, t=0.0) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) with d(dx)/dt = A dx + B du about (x0, u0), from symbolic Jacobians."""
@@ -437,7 +396,7 @@ class System:
         z = np.empty(k)
         Jx = np.empty((k, 2 * n))
         Ju = np.empty((k, self.n_u))
-        if not self._interpreted(_linear_terms_py, T[0], X[0], U[0], Am, z, Jx, Ju):
+        if not self._interpreted(interpreted.linear_terms_py, T[0], X[0], U[0], Am, z, Jx, Ju):
             self._m.linear_terms(T[0], X[0], U[0], self._p, Am, z, Jx, Ju)
         terms = np.concatenate([z, Jx.ravel(), Ju.ravel()])[None, :]
         self._finite("linearize", terms, T, X, U)
@@ -450,61 +409,6 @@ class System:
         B = np.zeros((2 * n, self.n_u))
         B[n:, :] = dz[:n, 2 * n :]
         return A, B
-
-
-INTERPRETED_POINTS = 5000
-"""While a model's linearisation kernel is not compiled (`_compiled`), its first points in a
-process (`System.linearize`, `System.kkt`) run its generated code as plain Python: the same
-arithmetic in the same order (the same numbers up to the last bit of a power, which Python
-takes from libm's `pow` and numba as products; tests/dynamics/test_linearize.py), without
-compiling it. So do `System.accelerations` and `multipliers` of at most `INTERPRETED_ROWS`
-rows while their kernel is not compiled: the checks an env runs when it is made (every
-input moves something, the operating input) then compile nothing the first step does not
-need. A handful of points (an LQR design, the bicycle's benchmark matrices) then
-costs milliseconds instead of compiling the Jacobians (the bicycle's 4,500 lines: 40 s of
-CPU). A point interpreted costs about 1e-4 of that compilation (two-link arm 0.2 ms
-against 1.5 s, the bicycle 3-6 ms against 40 s), so a planner's many linearisations switch
-to the compiled kernel after this many, having spent at most about half of it."""
-
-INTERPRETED_ROWS = 64
-"""The largest batch of `System.accelerations` that may run as Python (see above)."""
-
-_interpreted_points: dict[str, int] = {}
-
-
-def _compiled(m) -> bool:
-    """True when module m's linearisation kernel is compiled (`_kernel_compiled`)."""
-    return _kernel_compiled(m.linear_terms)
-
-
-def _kernel_compiled(kernel) -> bool:
-    """True when `kernel` is compiled: in this process, or in numba's on-disk cache (its
-    index file; then using it costs a file read)."""
-    if kernel.signatures:
-        return True
-    try:
-        return os.path.exists(kernel._cache._cache_file._index_path)
-    except AttributeError:  # another numba's private layout: count it as not compiled
-        return False
-
-
-def _accelerations_py(m, t, x, u, p, z) -> None:
-    """`accelerations` of module m through the Python functions of its kernels."""
-    A = np.empty((m.K, m.K + 1))  # a spare column for solve
-    m.kkt.py_func(t, x, u, p, A, z)
-    m.solve.py_func(A, z)
-
-
-def _kkt_py(m, t, x, u, p, A, r) -> None:
-    m.kkt.py_func(t, x, u, p, A, r)
-
-
-def _linear_terms_py(m, t, x, u, p, A, z, Jx, Ju) -> None:
-    """`linear_terms` of module m through the Python functions of its kernels."""
-    m.kkt.py_func(t, x, u, p, A, z)
-    m.solve.py_func(A, z)
-    m.jacobians.py_func(t, x, u, p, z.tolist(), Jx, Ju)
-    m.kkt_matrix.py_func(t, x, p, A)
 
 
 BLOCK = 64

@@ -15,6 +15,8 @@ A new system is a `Task` (see `envs.task`) on any model, registered with one cal
 `gymnasium.register` (`register` below is that call, spelled out).
 """
 
+import importlib
+import sys
 import warnings
 
 from gymnasium.envs.registration import registry
@@ -24,8 +26,8 @@ from dynamics import wrap
 from . import docs  # noqa: F401  (envs.docs.describe)
 from .env import LagrangianEnv
 from .randomize import Choice, LogUniform, Same, TruncNormal, Uniform
-from .swing_up import swing_up_ppo  # noqa: F401  (envs.swing_up_ppo)
 from .task import Angle, AngleError, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
+from .tasks.swing_up import swing_up_ppo  # noqa: F401  (envs.swing_up_ppo)
 from .vector import LagrangianVectorEnv
 
 
@@ -58,24 +60,31 @@ def register(env_id: str, task: Task, **kwargs) -> None:
 
 
 def _register_builtins() -> tuple[str, ...]:
-    """Register every built-in version; return the current one of each task."""
-    from . import acrobot, arm, bead, bicycle, crank, disk
+    """Register every built-in version (`envs.tasks`); return the current one of each."""
+    from .tasks import CURRENT, OLDER
 
-    current = {
-        "Lagrange/TwoLinkArm-v1": arm.TASK,
-        "Lagrange/Acrobot-v2": acrobot.TASK_V2,
-        "Lagrange/RollingDisk-v1": disk.TASK,
-        "Lagrange/BeadOnRod-v1": bead.TASK,
-        "Lagrange/CrankSlider-v1": crank.TASK,
-        "Lagrange/Bicycle-v0": bicycle.TASK,
-    }
-    older = {"Lagrange/Acrobot-v1": acrobot.TASK}  # the 3 N*m elbow: hard, kept to compare
-    for env_id, task in {**current, **older}.items():
+    for env_id, task in {**CURRENT, **OLDER}.items():
         register(env_id, task)
-    return tuple(current)
+    return tuple(CURRENT)
 
 
 ENV_IDS: tuple[str, ...] = _register_builtins()
+
+_MOVED = ("arm", "acrobot", "disk", "bead", "crank", "bicycle", "swing_up", "rendering_bicycle")
+for _name in _MOVED:  # `import envs.arm` and `from envs.arm import TASK` keep working
+    sys.modules[f"{__name__}.{_name}"] = importlib.import_module(f".tasks.{_name}", __name__)
+
+
+def __getattr__(name: str):
+    """The built-in tasks' old home: `envs.arm` is `envs.tasks.arm` (with a warning)."""
+    if name in _MOVED:
+        warnings.warn(
+            f"envs.{name} moved to envs.tasks.{name}; import it from there.",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return sys.modules[f"{__name__}.tasks.{name}"]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "ENV_IDS",

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .checks import checked_rows, positive_float, positive_int, real_array
-from .compiled import wait_for_background
+from .step import wait_for_background
 from .plant import Plant
 from .runtime import Runtime
 from .task import Task
@@ -29,7 +29,7 @@ def make_runtime(task: Task, n: int, options: dict[str, Any]) -> Runtime:
     of one thread at N = 1024 and 0.7x at 16384 (benchmarks/env_speed.py). Give
     `num_threads=available_cores()` where the cores are yours.
 
-    A fused step still compiling in the background (`envs.compiled.fused_for`) is waited
+    A fused step still compiling in the background (`envs.step.Step`) is waited
     for first: numba swaps the process's warning filters while it compiles (they are not
     per thread before Python 3.14), and a plant's build warns (its nominal values, a task
     function left as Python)."""

@@ -19,11 +19,12 @@ from pathlib import Path
 
 from dynamics.cache import write_atomic
 
+from . import tasks
 from .plant import Plant
 from .task import Task
 
 _SOURCE = Path(__file__).read_text(encoding="utf-8")
-MODULES = ("envs.arm", "envs.acrobot", "envs.disk", "envs.bead", "envs.crank", "envs.bicycle")
+MODULES = tuple(f"envs.tasks.{name}" for name in tasks.MODULES)
 
 
 def describe(task: Task, **params) -> str:
@@ -226,16 +227,12 @@ def document(doc: str, task: Task, **params) -> str:
 
 
 def current_task(module) -> Task:
-    """The task of the current version (`envs.ENV_IDS`) among the module's tasks: the one
-    its docstring describes (older versions are documented by their own variable's
+    """The task of the current version (`envs.tasks.CURRENT`) among the module's tasks: the
+    one its docstring describes (older versions are documented by their own variable's
     docstring, see the site's generator)."""
-    import gymnasium as gym
-
-    import envs
-
-    tasks = [gym.spec(i).kwargs["task"] for i in envs.ENV_IDS]
     mine = [v for v in vars(module).values() if isinstance(v, Task)]
-    return next((t for t in tasks if any(t is m for m in mine)), module.TASK)
+    current = tasks.CURRENT.values()
+    return next((t for t in current if any(t is m for m in mine)), module.TASK)
 
 
 def regenerated(module_name: str) -> tuple[Path, str, str]:

@@ -146,7 +146,7 @@ def _segment(lines: list[str], name: str, buf: str, start: int, width: int | Non
 
 
 def source(plan: dict) -> str:
-    """The generated module's text for a runtime's `plan` (see `envs.compiled.plan`)."""
+    """The generated module's text for a runtime's `plan` (see `envs.step.Step._plan`)."""
     body = _body(plan)
     head = _header(plan)
     _unpack(head, plan, set(re.findall(r"[A-Za-z_]\w*", "\n".join(body))))
@@ -198,7 +198,7 @@ def _body(plan: dict) -> list[str]:
     """The step's work, after its views of the buffers: apply the actions, integrate,
     check divergence, the outputs, the task's functions and the results."""
     lines = [
-        "    for k in range(addresses.shape[0]):  # written by envs.compiled.bind_fused",
+        "    for k in range(addresses.shape[0]):  # written by envs.step.Step._install",
         "        if addresses[k] == 0:",
         "            raise RuntimeError('the fused step was called before it was bound')",
     ]

@@ -11,21 +11,17 @@ declares what is drawn; the store draws it (`draw`, `redraw_due`) and writes it
 (`write`); the runtime hands `model_params` and `task_params` to the step, and the
 perturber reads `model_params`.
 
-The nominal warning (`follows`) runs once per plant: it names the declared numbers that
-stay at the env's values in every copy, and finds whether the task functions' record can
-follow each copy's values.
+Whether the task functions' record follows each copy's values is a fact of the plant
+(`Plant.follows`, found where the plant is built: `envs.nominal`).
 """
 
 from __future__ import annotations
 
-import warnings
-import weakref
 from collections.abc import Mapping
 
 import numpy as np
 
 from .checks import real_array
-from .distributions import Same
 from .randomize import parameter_name
 
 
@@ -41,7 +37,7 @@ class ParameterRows:
         self.P = np.tile(self.nominal, (n, 1)) if self.randomized or rows else None
         self.pins = np.zeros(self.P.shape, dtype=bool) if self.randomized else None
         self.drawn = np.zeros(n, dtype=bool) if self.randomized else None  # once-only draws
-        self.follows = self.randomized and follows(plant)
+        self.follows = self.randomized and plant.follows
         self.records = record_rows(plant.p, n) if self.follows else None
         self._views: dict = {}
 
@@ -218,157 +214,10 @@ def task_records(plant, values: np.ndarray) -> np.recarray:
     for j, k in enumerate(names):
         out[k] = values[:, j]
     if plant.task.constants is not None:
-        inputs = constant_inputs(plant)
+        inputs = plant.constant_inputs
         moved = (values[:, inputs] != plant.randomize.nominal[inputs]).any(axis=1)
         for r in np.flatnonzero(moved).tolist():
             system = plant.system.with_parameters(**dict(zip(names, values[r].tolist())))
             for k, v in plant.task.constants(system).items():
                 out[k][r] = v
     return out
-
-
-_CONSTANT_INPUTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_FOLLOWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def constant_inputs(plant) -> np.ndarray:
-    """bool (n_p,): the parameters the task's `constants` depend on (each moved a little
-    in turn; one the model refuses to move counts as one they depend on). Once per plant:
-    the constants may cost a sweep of the model (CrankSlider's: 0.3 ms)."""
-    if plant in _CONSTANT_INPUTS:
-        return _CONSTANT_INPUTS[plant]
-    system, names = plant.system, list(plant.system.parameters)
-    nominal = plant.task.constants(system)
-    out = np.zeros(len(names), dtype=bool)
-    for j, k in enumerate(names):
-        try:
-            moved = plant.task.constants(system.with_parameters(**{k: plant.p[k] * 1.001 + 1e-3}))
-            out[j] = any(moved[c] != nominal[c] for c in nominal)
-        except ValueError:
-            out[j] = True
-    _CONSTANT_INPUTS[plant] = out
-    return out
-
-
-def follows(plant) -> bool:
-    """Whether the task functions' record `p` follows each copy's values, with the nominal
-    warning (`warn_nominal`); once per plant."""
-    if plant not in _FOLLOWS:
-        _FOLLOWS[plant] = warn_nominal(plant)
-    return _FOLLOWS[plant]
-
-
-_RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_low", "obs_high",
-             "term_low", "term_high")  # fmt: skip
-
-
-def _at(plant, values: dict):
-    """`plant`'s task built with the parameters `values` (name -> value) changed (nothing
-    randomised)."""
-    from .plant import Plant
-
-    options = {k: v for k, v in plant.options.items() if k not in ("observe_params", "perturb")}
-    return Plant.build(plant.task, {**options, **plant.params, **values, "randomize": False})
-
-
-def _moved(plant, other) -> set[str]:
-    """The declared numbers of `plant` that `other` (built at other values) resolves
-    differently (the task's own observation columns: the context's are the supports)."""
-    out = set()
-    for k in _RESOLVED:
-        mine, theirs = getattr(plant, k), getattr(other, k)
-        if k.startswith("obs_"):
-            mine = mine[: plant.observation.declared]
-        if not np.array_equal(mine, theirs):
-            out.add(k)
-    return out
-
-
-def warn_nominal(plant) -> bool:
-    """Whether the task functions' record `p` follows each copy's values (parameters and
-    the `constants` computed from them): True when some task function reads `p` and every
-    such function reads it element by element (checked on sample rows: given a record per
-    row, each row gets what its own record gives). A warning names what stays at the
-    env's values in every copy: the declared numbers (input limits, bounds, the start
-    distribution) that depend on a randomised parameter, and the functions and constants
-    too when they cannot follow."""
-    spec = plant.randomize
-    nudged = record_rows(plant.p, 1)[0]
-    for k in plant.p.dtype.names:  # every parameter and constant moved a little
-        nudged[k] = plant.p[k] * 1.001 + 1e-3
-    labels, rowwise = _functions_reading(plant, nudged)
-    rowwise &= bool(labels)
-    changed = {}
-    for name, d in spec.dists.items():
-        if isinstance(d, Same):  # moved with the parameter it follows
-            continue
-        changed[name] = set()
-        group = [name] + [k for k, f in spec.dists.items() if getattr(f, "parameter", 0) == name]
-        for end in d.ends():  # the parameter and those drawn Same as it, at an end
-            other = _at(plant, {k: spec.dists[k].value(end, spec.nominal[spec.columns[k]])
-                                for k in group})  # fmt: skip
-            changed[name] |= _moved(plant, other)
-            changed[name] |= {
-                f"constant {k!r}"
-                for k in plant.p.dtype.names
-                if k not in plant.system.parameters and other.p[k] != plant.p[k]
-            }
-            drawn = [p.sample_start(np.random.default_rng(0)) for p in (plant, other)]
-            if not all(np.array_equal(a, b) for a, b in zip(*drawn)):
-                changed[name].add("start")
-            changed[name] |= _functions_reading(plant, other.p)[0]
-    for name, items in changed.items():
-        if rowwise:
-            items = {k for k in items if not k.startswith(("constant", "task function"))}
-        if items:
-            warnings.warn(
-                f"Task {plant.task.name!r}: {', '.join(sorted(items))} depend(s) on "
-                f"randomised {name!r}; they keep the env's values in every copy (only the "
-                "dynamics"
-                + (" and the task functions' record p" if rowwise else "")
-                + " follow each copy's parameters).",
-                RuntimeWarning,
-                stacklevel=7,
-            )
-    return rowwise
-
-
-def _functions_reading(plant, other) -> tuple[set[str], bool]:
-    """(labels, rowwise): the task functions whose values differ between `plant.p` and
-    the record `other` (at sample rows with their state perturbed, so that rates are not
-    all 0, and random actions), and whether each of them, given one record per row
-    (alternately `plant.p` and `other`), returns row by row what that row's record gives."""
-    from .names import caller, record_type  # the runtime's form of the calls
-
-    task = plant.task
-    x, g = plant.sample_rows(8)
-    rng = np.random.default_rng(0)
-    n_x = plant.system.state_size
-    x[:, :n_x] += rng.normal(0.0, 0.5, (len(x), n_x))
-    a = rng.uniform(-1.0, 1.0, (len(x), len(plant.actuated)))
-    fns = [(t.name, t.fn) for t in task.terms]
-    fns += [("success", task.success), ("failure", task.failure)]
-    fns += [(f.name, f.fn) for f in task.observation if hasattr(f, "fn")]
-    types = (record_type("Rows", plant.row_names), record_type("Actions", task.actuated),
-             record_type("Goal", plant.goal_names))  # fmt: skip
-    mixed = record_rows(plant.p, len(x))
-    odd = np.arange(len(x)) % 2 == 1
-    mixed[odd] = other
-    out, rowwise = set(), True
-    for label, fn in fns:
-        if fn is None:
-            continue
-        call = caller(fn, *types)
-        with np.errstate(all="ignore"):
-            ends = [np.asarray(call(x, a, g, p), dtype=np.float64) for p in (plant.p, other)]
-            if np.array_equal(*ends, equal_nan=True):
-                continue
-            out.add(f"task function {label!r}")
-            try:
-                rows = np.asarray(call(x, a, g, mixed), dtype=np.float64)
-            except Exception:  # a task function's own error: it does not read p by row
-                rowwise = False
-                continue
-        expected = np.where(odd.reshape((-1,) + (1,) * (ends[0].ndim - 1)), *ends[::-1])
-        rowwise &= rows.shape == expected.shape and np.array_equal(rows, expected, equal_nan=True)
-    return out, rowwise

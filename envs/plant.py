@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from . import checks, observation, starts
+from . import checks, nominal, observation, starts
 from .checks import real_array
 from .names import operating_state as call_operating_point
 from .observation import Observation, compile_observation, read_only
@@ -51,7 +51,6 @@ class Plant:
     task: Task
     system: Any
     p: np.record  # the task functions' record: the parameters, then the task's constants
-    params: dict  # the model parameters the env was given (by name)
     options: dict  # the env options it was built with (`ENV_OPTIONS`)
     state_names: tuple[str, ...]
     row_names: tuple[str, ...]  # the columns of the rows x the task functions see
@@ -75,6 +74,11 @@ class Plant:
     randomize: Randomization | None = None
     # the checked `perturb=` option (envs.perturb), or None: the env's runtime applies it
     perturb: Perturbations | None = None
+    # with randomisation (envs.nominal): whether the task functions' record follows each
+    # copy's values, and (bool (n_p,), where it does and the task has constants) the
+    # parameters the task's constants depend on
+    follows: bool = False
+    constant_inputs: np.ndarray | None = None
 
     def __post_init__(self):
         read_only(self)
@@ -97,12 +101,18 @@ class Plant:
         obs = compile_observation(task, system.n_q, parts["row_names"], parts["goal_names"], p,
                                   parts["limits"], (parts["goal_low"], parts["goal_high"]),
                                   context)  # fmt: skip
-        plant = cls(task=task, system=system, p=p, params=params, options=opts,
-                    observation=obs, randomize=spec, **parts,
-                    **stepping(task, opts))  # fmt: skip
+        plant = cls(task=task, system=system, p=p, options=opts, observation=obs,
+                    randomize=spec, **parts, **stepping(task, opts))  # fmt: skip
         checks.check_with_model(plant)
-        perturb = Perturbations.parse(opts.get("perturb"), plant)
-        return plant if perturb is None else dataclasses.replace(plant, perturb=perturb)
+        facts = {"perturb": Perturbations.parse(opts.get("perturb"), plant)}
+        if spec is not None:  # the supports compared here, where plants are built
+            base = {k: v for k, v in opts.items() if k not in ("observe_params", "perturb")}
+            base.update(params, randomize=False)
+            follows = nominal.warn(plant, lambda values: cls.build(task, {**base, **values}))
+            facts["follows"] = follows
+            if follows and task.constants is not None:
+                facts["constant_inputs"] = nominal.constant_inputs(plant)
+        return dataclasses.replace(plant, **facts)
 
     # ---- the compiled observation ----------------------------------------------------------
     @property

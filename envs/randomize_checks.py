@@ -13,13 +13,9 @@ from .distributions import Same
 
 
 def parameter_name(system, key, where: str) -> None:
-    """ValueError (with a "Did you mean") unless `key` is a parameter of `system`."""
-    known = list(system.parameters)
-    if key not in known:
-        raise ValueError(
-            f"{where}: {key!r} is not a parameter of {system.name}.{did_you_mean(key, known)} "
-            f"Known: {', '.join(known)}."
-        )
+    """UnknownParameterError (a ValueError, with a "Did you mean") unless `key` is a
+    parameter of `system` (`dynamics.checks.parameter_name`)."""
+    checks.parameter_name(key, system.parameters, system.name, where)
 
 
 def follow(d: Same, key: str, dists: dict) -> Same:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 import dynamics
-from dynamics.checks import did_you_mean
+from dynamics.checks import UnknownParameterError, did_you_mean
 from dynamics.model import factory_target
 from dynamics.system import method_tableau
 
@@ -82,17 +82,8 @@ def compile_system(model, params: dict) -> dynamics.System:
         if isinstance(model, dynamics.System):
             return model.with_parameters(**params) if params else model
         return _model(model).compile(**params)
-    except ValueError as exc:
-        if not str(exc).startswith("Unknown parameter"):
-            raise
-    system = model if isinstance(model, dynamics.System) else _model(model).compile()
-    known = list(system.parameters)
-    key = next(k for k in params if k not in known)
-    hint = did_you_mean(key, known + list(ENV_OPTIONS))
-    raise ValueError(
-        f"Unknown argument {key!r}.{hint} Known: {', '.join(ENV_OPTIONS)} and the "
-        f"parameters of {system.name}: {', '.join(known)}."
-    ) from None
+    except UnknownParameterError as exc:  # the env's options are names it could mean too
+        raise UnknownParameterError(exc.name, exc.known, exc.owner, options=ENV_OPTIONS) from None
 
 
 def parameter_record(task: Task, system) -> np.record:

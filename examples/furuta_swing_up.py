@@ -70,7 +70,7 @@ TASK = dataclasses.replace(
         # energy at about 6.5 rad/s with the pendulum hanging, so an energy potential would
         # pay for spinning the arm; the `upright` reward (cos theta) already grows with the
         # pendulum's height. gamma 0.995 looks 4 s ahead, past a 3 s swing-up (the plan's
-        # horizon); the rest of the settings are the acrobot's (envs.swing_up). n_timesteps
+        # horizon); the rest of the settings are the acrobot's (envs.tasks.swing_up). n_timesteps
         # also sets how often a --budget run evaluates (every 30th: 50k steps). At 500k
         # (every 16.7k) a pendubot run evaluated 100, 75, 90, 50 % at 16.7k-66.7k steps:
         # no two in a row at 80 %.

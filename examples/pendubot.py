@@ -156,7 +156,7 @@ TASK = envs.Task(
         # acrobot's measured ratio (300 against 500 x 2 for its height term: at a third of
         # it, two seeds of three stayed folded, one link up and one down, where the upright
         # reward is 0 too). gamma 0.995 looks 4 s ahead, past a 3 s swing-up (the plan's
-        # horizon); the rest of the settings are the acrobot's (envs.swing_up). n_timesteps
+        # horizon); the rest of the settings are the acrobot's (envs.tasks.swing_up). n_timesteps
         # also sets how often a --budget run evaluates (every 30th: 50k steps). At 500k
         # (every 16.7k) a pendubot run evaluated 100, 75, 90, 50 % at 16.7k-66.7k steps:
         # no two in a row at 80 %.

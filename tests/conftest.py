@@ -23,10 +23,10 @@ def interactive_sigint():
 
 @pytest.fixture(autouse=True)
 def _background_compiles_end_with_their_test():
-    """A fused step compiling in the background (envs.compiled) is bound before the next
+    """A fused step compiling in the background (envs.step) is bound before the next
     test starts: numba swaps the process's warning filters while it compiles, which a later
     test that expects a warning would otherwise meet."""
     yield
-    from envs.compiled import wait_for_background
+    from envs.step import wait_for_background
 
     wait_for_background()

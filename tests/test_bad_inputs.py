@@ -852,3 +852,32 @@ def test_a_user_s_system_slip_is_named_with_the_names_it_could_mean(case):
     for w in words:
         assert w in str(info.value), (w, str(info.value))
     assert "Rows_" not in str(info.value) and "\n" not in str(info.value)
+
+
+def test_every_check_of_a_parameter_name_raises_one_type(tmp_path):
+    """A name that is not a model parameter is refused by one function
+    (`dynamics.checks.parameter_name`) wherever it is given, as UnknownParameterError (a
+    ValueError): the system, the modes, gym.make's keywords, randomize=, the reset option,
+    and the agents' randomisation and --params (as UserError carrying its message)."""
+    from agents import params
+    from agents.learning.randomization import ranges
+    from dynamics.checks import UnknownParameterError
+    from dynamics.modes import mass_and_stiffness
+
+    arm_id = "Lagrange/TwoLinkArm-v1"
+    system = dynamics.get_model("two_link_arm").compile()
+    calls = [
+        lambda: system.with_parameters(mm1=1.0),
+        lambda: mass_and_stiffness(dynamics.get_model("two_link_arm"), [0.0, 0.0], m22=2.0),
+        lambda: gym.make(arm_id, m22=2.0),
+        lambda: gym.make(arm_id, randomize={"m22": (1.0, 2.0)}),
+        lambda: gym.make(arm_id, randomize={}).reset(options={"params": {"m22": 1.0}}),
+    ]
+    for call in calls:
+        with pytest.raises(UnknownParameterError, match="(?i)unknown (parameter|argument) 'm[m2]"):
+            call()
+    (tmp_path / "p.yml").write_text("m22: 1.4\n")
+    for call in (lambda: ranges(system, {"m22": 0.1}),
+                 lambda: params.load(tmp_path / "p.yml", arm_id)):  # fmt: skip
+        with pytest.raises(UserError, match="unknown parameter 'm22'"):
+            call()

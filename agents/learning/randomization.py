@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import math
 
+from dynamics.checks import UnknownParameterError, parameter_name
+
 from ..common import UserError
 from ..values import Bad, short
 
@@ -126,11 +128,10 @@ def ranges(system, setting: dict | None) -> dict | None:
     for key, value in setting.items():
         if key == GROUP:
             continue
-        if key not in nominal:
-            raise UserError(
-                f"randomize: {key!r} is not a parameter of {system.name}; known: "
-                f"{', '.join(nominal)} (or {GROUP!r} for every mass and inertia)."
-            )
+        try:
+            parameter_name(key, nominal, system.name, "randomize")
+        except UnknownParameterError as exc:
+            raise UserError(f"{exc} (Or {GROUP!r} for every mass and inertia.)") from None
         out[key] = tuple(value) if isinstance(value, list) else scaled(nominal[key], value)
     return out
 

@@ -175,7 +175,8 @@ def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
     """`venv` with the reward scale, LQR shaping and success bonus the hyperparameters ask
     for (agents.learning.shaping; the registered reward is untouched), or `venv` itself.
     (Whether the task's reward is flat inside its success set is said where it matters, in
-    the diagnosis of an agent that misses the set: agents.scoring.diagnosis.)"""
+    the diagnosis of an agent that misses the set: agents.scoring.diagnosis, from the probe
+    of agents.learning.flat.)"""
     from ..common import task_of
     from .defaults import episode_steps
     from .shaping import TaskRewardVecEnv, lqr_potential

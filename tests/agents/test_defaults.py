@@ -19,9 +19,9 @@ from agents.learning.defaults import (
     discount,
     reward_span,
 )
+from agents.learning.flat import flat_components, success_edges
 from agents.learning.shaping import LQRPotential, TaskRewardVecEnv
 from agents.learning.vecenv import make_envs
-from agents.scoring.diagnosis import flat_components, success_edges
 
 FURUTA = "Examples/Furuta-v0"
 ACROBOT = next(e for e in envs.ENV_IDS if "/Acrobot-" in e)
@@ -204,7 +204,7 @@ def test_shaping_is_derived_where_the_operating_point_follows_the_state():
 
 
 def test_flat_reward_warning_names_the_remedy_the_training_has():
-    from agents.scoring.diagnosis import flat_reward_warning
+    from agents.learning.flat import flat_reward_warning
 
     shaped = flat_reward_warning(FURUTA, shaped=True)
     plain = flat_reward_warning(FURUTA, shaped=False)

@@ -8,7 +8,7 @@ from agents import lqr
 from agents.control import linear
 from agents.control.policies import ZeroPolicy
 from agents.scoring import closed_loop
-from envs import acrobot
+from envs.tasks import acrobot
 from tests.matrix import over
 
 

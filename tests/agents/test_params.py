@@ -50,7 +50,7 @@ def test_a_file_is_read_in_either_form_and_applied_within_the_block(identified, 
     [
         (
             "m22: 1.4\n",
-            "unknown parameter of Lagrange/TwoLinkArm-v1's model 'm22'. Did you mean 'm2'?",
+            "unknown parameter 'm22' of Lagrange/TwoLinkArm-v1's model. Did you mean 'm2'?",
         ),  # fmt: skip
         ("m2: .nan\n", "m2 must be a finite number, got nan"),
         ("m2: heavy\n", "m2 must be a finite number, got 'heavy'"),

@@ -53,22 +53,22 @@ def test_linearisation_of_the_prescribed_rod_is_time_dependent():
 def test_interpreted_linearisation_equals_the_compiled_kernels(name, monkeypatch):
     """A model's first linearisations run its generated code as Python (no compilation);
     later ones the compiled kernel: the same arithmetic in the same order."""
-    from dynamics import system as system_module
+    from dynamics import interpreted as interp
 
     system, xs = random_states(name, 3, seed=21)
     rng = np.random.default_rng(22)
     us = rng.normal(size=(3, system.n_u))
-    monkeypatch.setattr(system_module, "_interpreted_points", {})
-    monkeypatch.setattr(system_module, "_compiled", lambda m: False)  # whatever ran before
+    monkeypatch.setattr(interp, "_interpreted_points", {})
+    monkeypatch.setattr(interp, "_compiled", lambda m: False)  # whatever ran before
     programs = []
-    for name_py in ("_linear_terms_py", "_kkt_py"):
-        program = getattr(system_module, name_py)
+    for name_py in ("linear_terms_py", "kkt_py"):
+        program = getattr(interp, name_py)
         counted = lambda *a, f=program: programs.append(f) or f(*a)  # noqa: E731
-        monkeypatch.setattr(system_module, name_py, counted)
+        monkeypatch.setattr(interp, name_py, counted)
     interpreted = [system.linearize(x, u) for x, u in zip(xs, us)]
     kkts = [system.kkt(x, u) for x, u in zip(xs, us)]
     assert len(programs) == 6  # every one of them ran as Python
-    monkeypatch.setattr(system_module, "INTERPRETED_POINTS", 0)
+    monkeypatch.setattr(interp, "INTERPRETED_POINTS", 0)
     for x, u, (A, B), (K, r) in zip(xs, us, interpreted, kkts):
         A_c, B_c = system.linearize(x, u)
         # Python's floats and numba's are both IEEE doubles with the same operations in the
@@ -85,16 +85,16 @@ def test_interpreted_linearisation_equals_the_compiled_kernels(name, monkeypatch
 def test_interpreted_linearisation_falls_back_where_python_raises(monkeypatch):
     """A division by zero raises in Python and gives inf in the kernels: the compiled
     kernel then runs, and the error is the one the checks give for a non-finite result."""
-    from dynamics import system as system_module
+    from dynamics import interpreted as interp
 
     system, xs = random_states("two_link_arm", 1, seed=23)
-    monkeypatch.setattr(system_module, "_interpreted_points", {})
-    monkeypatch.setattr(system_module, "_compiled", lambda m: False)
+    monkeypatch.setattr(interp, "_interpreted_points", {})
+    monkeypatch.setattr(interp, "_compiled", lambda m: False)
 
     def divide_by_zero(*args):
         raise ZeroDivisionError("float division by zero")
 
-    monkeypatch.setattr(system_module, "_linear_terms_py", divide_by_zero)
+    monkeypatch.setattr(interp, "linear_terms_py", divide_by_zero)
     A, B = system.linearize(xs[0], np.zeros(system.n_u))
     assert system.kernel_module.linear_terms.signatures
     assert np.isfinite(A).all() and np.isfinite(B).all()
@@ -106,22 +106,22 @@ def test_interpreted_accelerations_equal_the_compiled_kernel(name, monkeypatch):
     as Python (no compilation of a kernel the first step does not use); a larger batch, or
     any once the budget is spent, the compiled kernel: the same numbers up to the last bit
     of a power (Python's libm `pow`, numba's products)."""
-    from dynamics import system as system_module
+    from dynamics import interpreted as interp
 
     system, xs = random_states(name, 5, seed=31)
     us = np.random.default_rng(32).normal(size=(5, system.n_u))
-    monkeypatch.setattr(system_module, "_interpreted_points", {})
-    monkeypatch.setattr(system_module, "_kernel_compiled", lambda kernel: False)
-    program = system_module._accelerations_py
+    monkeypatch.setattr(interp, "_interpreted_points", {})
+    monkeypatch.setattr(interp.cache, "compiled", lambda kernel: False)
+    program = interp.accelerations_py
     ran = []
     counted = lambda *a: ran.append(1) or program(*a)  # noqa: E731
-    monkeypatch.setattr(system_module, "_accelerations_py", counted)
+    monkeypatch.setattr(interp, "accelerations_py", counted)
     qdd, lam = system.accelerations(0.0, xs, us), system.multipliers(0.0, xs, us)
     assert len(ran) == 10  # every row of both calls ran as Python
-    many = np.repeat(xs, system_module.INTERPRETED_ROWS // 5 + 1, axis=0)
+    many = np.repeat(xs, interp.INTERPRETED_ROWS // 5 + 1, axis=0)
     system.accelerations(0.0, many, np.zeros((len(many), system.n_u)))
     assert len(ran) == 10  # a large batch goes to the kernel
-    monkeypatch.setattr(system_module, "INTERPRETED_POINTS", 0)
+    monkeypatch.setattr(interp, "INTERPRETED_POINTS", 0)
     qdd_c, lam_c = system.accelerations(0.0, xs, us), system.multipliers(0.0, xs, us)
     assert len(ran) == 10
     scale = max(1.0, np.abs(qdd_c).max(), np.abs(lam_c).max() if lam_c.size else 0.0)

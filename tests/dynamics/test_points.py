@@ -1,6 +1,6 @@
 """Points of a model that external forces act on (`ModelSpec.points`): their generalised
 forces by virtual work against hand-written geometry, and the integrator that adds
-generalised forces (`System.step_pushed_unchecked`): none added is no change, and their
+generalised forces (`System.step_unchecked` given W): none added is no change, and their
 work is the energy they add."""
 
 from __future__ import annotations
@@ -82,12 +82,12 @@ def test_the_pushed_step_adds_the_work_of_its_forces_and_nothing_without_them(mo
     T, U = np.zeros(rows), np.zeros((rows, system.n_u))
     P = np.tile(system.parameter_vector, (rows, 1))
     plain, pushed = np.empty_like(x), np.empty_like(x)
-    system.step_rows_unchecked(T, x, U, P, 0.05, 10, plain, "dop853")
-    system.step_pushed_unchecked(T, x, U, P, np.zeros((rows, n)), 0.05, 10, pushed, "dop853")
+    system.step_unchecked(T, x, U, 0.05, 10, plain, "dop853", P=P)
+    system.step_unchecked(T, x, U, 0.05, 10, pushed, "dop853", P=P, W=np.zeros((rows, n)))
     assert np.array_equal(plain, pushed)
     force = rng.normal(0, 5, (rows, system.points[next(iter(system.points))]))
     W = system.point_forces(x, next(iter(system.points)), force)
-    system.step_pushed_unchecked(T, x, U, P, W, 0.05, 10, pushed, "dop853")
+    system.step_unchecked(T, x, U, 0.05, 10, pushed, "dop853", P=P, W=W)
     work = np.einsum("bi,bi->b", W, pushed[:, :n] - x[:, :n])
     gained = system.energy(pushed) - system.energy(x)
     assert np.abs(gained - work).max() < 1e-9

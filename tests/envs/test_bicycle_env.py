@@ -12,7 +12,7 @@ from agents.control.bicycle_policy import BicycleLQRPolicy
 from agents.control.linear import discretize
 from agents.evaluate import evaluate, make_agent
 from dynamics.bicycle import reduced_linearization
-from envs import bicycle
+from envs.tasks import bicycle
 from envs.checks import Unsupported
 
 # the bicycle's kernels are compiled for this file alone (its first test: 13.5 s of CPU from a

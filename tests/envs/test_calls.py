@@ -69,20 +69,21 @@ def test_arguments_of_other_types_do_not_compile():
 
 
 def slots(rt):
-    return [slot for slot, *_ in rt._calls]
+    return [slot for slot, *_ in rt.stepper.calls]
 
 
 @pytest.mark.parametrize("rows", [1, 9])  # erk_row one row at a time; erk_rows in lanes
 def test_the_fused_step_calls_every_kernel_by_address(rows):
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", rows, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
-    assert rt._calls[0][1] is (stepping.erk_row if rows == 1 else stepping.erk_rows)
-    table = rt._fused_K[rt._table_slot :][: stepping.TABLE_SIZE]  # the model's kernels
+    step = rt.stepper
+    assert step.calls[0][1] is (stepping.erk_row if rows == 1 else stepping.erk_rows)
+    table = step.K[step.table_slot :][: stepping.TABLE_SIZE]  # the model's kernels
     assert table[stepping.AT_DERIVATIVE] != 0
-    reached = rt._fused.py_func.__globals__.values()  # what numba would link into the step
-    assert [v for v in reached if hasattr(v, "py_func") and v is not rt._fused] == []
-    assert "_call(addresses[" in inspect.getsource(rt._fused.py_func)
-    assert (rt._fused_K[slots(rt)] > 0).all()  # the addresses, written when it was bound
+    reached = step.fused.py_func.__globals__.values()  # what numba would link into the step
+    assert [v for v in reached if hasattr(v, "py_func") and v is not step.fused] == []
+    assert "_call(addresses[" in inspect.getsource(step.fused.py_func)
+    assert (step.K[slots(rt)] > 0).all()  # the addresses, written when it was bound
     obs = vec.reset(seed=0)[0]
     assert np.isfinite(vec.step(np.zeros(vec.action_space.shape, np.float32))[0]).all()
     assert not np.array_equal(obs, vec.unwrapped._rt.O)  # it moved
@@ -91,12 +92,13 @@ def test_the_fused_step_calls_every_kernel_by_address(rows):
 def test_a_step_without_an_address_refuses_to_run():
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", 1, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
-    K = rt._fused_K.copy()
-    K[slots(rt)[-1]] = 0  # as after unpickling, before bind_fused writes them
+    step, a, store = rt.stepper, rt.arrays, rt.parameters
+    K = step.K.copy()
+    K[slots(rt)[-1]] = 0  # as after unpickling, before the step is bound
     actions = np.zeros((1, 2))
     with pytest.raises(RuntimeError, match="called before it was bound"):
-        rt._fused_bound(actions, rt._F, rt._B, rt.steps, rt.O, rt._fused_C, K,
-                        rt._model_params, rt._task_params, -1)  # fmt: skip
+        step.bound(actions, a.F, a.B, a.steps, a.O, step.C, K, store.model_params,
+                   store.task_params, -1)  # fmt: skip
 
 
 def test_a_copied_env_binds_its_own_address():
@@ -111,10 +113,11 @@ def test_a_copied_env_binds_its_own_address():
     vec.step(a)
     for twin in (pickle.loads(pickle.dumps(vec)), copy.deepcopy(vec)):
         rt = twin.unwrapped._rt
-        assert rt._fused_bound is None and (rt._fused_K[slots(rt)] == 0).all()
-        assert rt._fused_K[rt._table_slot] == 0  # the model's table too
+        step = rt.stepper
+        assert step.bound is None and (step.K[slots(rt)] == 0).all()
+        assert step.K[step.table_slot] == 0  # the model's table too
         bound(twin)
-        assert (rt._fused_K == vec.unwrapped._rt._fused_K).all()
+        assert (step.K == vec.unwrapped._rt.stepper.K).all()
     ref = copy.deepcopy(vec)
     for _ in range(5):
         assert np.array_equal(vec.step(a)[0], bound(ref).step(a)[0])

@@ -14,7 +14,8 @@ import pytest
 from numba import njit
 
 import envs
-from envs import arm, buffers
+from envs import buffers
+from envs.tasks import arm
 from envs.fused import fingerprint
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.binding import bound
@@ -33,7 +34,7 @@ def _pair(env_id, n, **kwargs):
         gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs) for _ in range(2)
     )
     bound(fused)
-    separate.unwrapped._rt._fused = None  # the step of separate calls
+    separate.unwrapped._rt.stepper.separate()  # the step of separate calls
     return fused, separate
 
 
@@ -86,7 +87,7 @@ def test_many_threads_over_many_rows_keep_the_separate_calls():
     vec = gym.make_vec(
         "Lagrange/TwoLinkArm-v1", 130, vectorization_mode="vector_entry_point", num_threads=2
     )
-    assert vec.unwrapped._rt._fused is None  # blocks spread over threads
+    assert vec.unwrapped._rt.stepper.fused is None  # blocks spread over threads
     one = bound(
         gym.make_vec("Lagrange/TwoLinkArm-v1", 130, vectorization_mode="vector_entry_point")
     )
@@ -160,7 +161,7 @@ def test_closures_are_fingerprinted_by_their_cells():
     env = envs.LagrangianEnv(task)
     env.reset(seed=0)
     _, r, *_ = env.step(np.zeros(2, np.float32))
-    assert env._rt._fused is not None
+    assert env._rt.stepper.fused is not None
     assert r == pytest.approx(-3.0 * env.state[0] ** 2 + 0.0, rel=1e-12)
 
 
@@ -194,7 +195,7 @@ def test_the_generated_step_names_parameters_and_terms_as_the_book_does():
     reward terms `terms`."""
     env = gym.make("Lagrange/TwoLinkArm-v1")
     env.reset(seed=0)
-    module = sys.modules[env.unwrapped._rt._fused.py_func.__module__]
+    module = sys.modules[env.unwrapped._rt.stepper.fused.py_func.__module__]
     with open(module.__file__, encoding="utf-8") as fh:
         text = fh.read()
     assert "def step(actions, F_, B_, steps, O, C_, K_, model_params, task_params," in text
@@ -206,7 +207,7 @@ def test_a_new_fused_step_compiles_in_the_background_and_steps_the_same(monkeypa
     """A single env whose fused step numba's cache does not have steps by separate calls
     while the step compiles in a thread, then by the step: the same numbers bit for bit as
     an env that had its step from the first (the trajectory crosses the hand-over)."""
-    from envs import compiled
+    from envs import step
 
     def run(env, steps=40):
         rng = np.random.default_rng(4)
@@ -218,32 +219,33 @@ def test_a_new_fused_step_compiles_in_the_background_and_steps_the_same(monkeypa
                 out.append(env.reset()[0])
         return np.concatenate([np.ravel(np.asarray(o, np.float64)) for o in out])
 
-    steps = compiled.SEPARATE_FIRST + 40
+    steps = step.SEPARATE_FIRST + 40
     expected = run(gym.make("Examples/CartPole-v0"), steps)
-    monkeypatch.setattr(compiled, "_kernel_compiled", lambda kernel: False)  # not cached
+    monkeypatch.setattr(step, "kernel_compiled", lambda kernel: False)  # not cached
     env = gym.make("Examples/CartPole-v0")
-    rt = env.unwrapped._rt
+    stepper = env.unwrapped._rt.stepper
     got = run(env, steps)  # separate calls; the thread starts after SEPARATE_FIRST steps
-    assert rt._fused_pending is not None
+    # the thread started (only it binds the step here), and may have handed its step over
+    assert stepper.compiling or stepper.bound is not None
     assert np.array_equal(got, expected)
-    compiled.wait_for_background()
-    assert rt._fused_bound is not None
-    assert np.array_equal(run(env, steps), expected)
+    step.wait_for_background()
+    assert np.array_equal(run(env, steps), expected)  # its first step takes the thread's
+    assert stepper.bound is not None and not stepper.compiling
 
 
 def test_an_env_stepped_a_few_times_never_compiles_its_fused_step(monkeypatch):
-    from envs import compiled
+    from envs import step
 
-    monkeypatch.setattr(compiled, "_kernel_compiled", lambda kernel: False)  # not cached
+    monkeypatch.setattr(step, "kernel_compiled", lambda kernel: False)  # not cached
     env = gym.make("Examples/CartPole-v0")
     env.reset(seed=0)
-    for _ in range(compiled.SEPARATE_FIRST):
+    for _ in range(step.SEPARATE_FIRST):
         if any(env.step(env.action_space.sample())[2:4]):
             env.reset()
-    rt = env.unwrapped._rt
-    assert rt._fused_pending is None and rt._fused_bound is None
+    stepper = env.unwrapped._rt.stepper
+    assert not stepper.compiling and stepper.bound is None
     env.step(env.action_space.sample())  # one more: the step starts compiling
-    assert rt._fused_pending is not None
+    assert stepper.compiling
 
 
 @njit(cache=False)
@@ -269,10 +271,10 @@ def test_a_step_given_buffers_of_other_sizes_refuses_to_run():
     sizes once, before it makes them."""
     vec = gym.make_vec("Lagrange/TwoLinkArm-v1", 3, vectorization_mode="vector_entry_point")
     rt = bound(vec).unwrapped._rt
-    args = [rt._F, rt._B, rt.steps, rt.O, rt._fused_C, rt._fused_K, rt._model_params,
-            rt._task_params, -1]  # fmt: skip
+    step, a, store = rt.stepper, rt.arrays, rt.parameters
+    args = [a.F, a.B, a.steps, a.O, step.C, step.K, store.model_params, store.task_params, -1]
     for k in (0, 1, 4):  # F_, B_, C_
         short = list(args)
         short[k] = args[k][:-1].copy()
         with pytest.raises(ValueError, match="sizes the step was made for"):
-            rt._fused_bound(np.zeros((3, 2)), *short)
+            step.bound(np.zeros((3, 2)), *short)

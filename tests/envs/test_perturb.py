@@ -58,8 +58,8 @@ def _rollout(env, actions, seed):
 def test_off_by_default_keeps_the_fused_step(value):
     for env in (gym.make(ARM, perturb=value).unwrapped, _vec(ARM, 3, perturb=value).unwrapped):
         assert env._rt.perturber is None
-        assert env._rt._fused is not None
-        assert "applied" not in inspect.getsource(env._rt._fused.py_func)
+        assert env._rt.stepper.fused is not None
+        assert "applied" not in inspect.getsource(env._rt.stepper.fused.py_func)
 
 
 @pytest.mark.parametrize("env_id", PERTURBED_IDS)
@@ -74,7 +74,7 @@ def test_neutral_perturbations_step_bit_for_bit_like_none(env_id, fused):
     if fused:
         bound(neutral)
     else:
-        neutral._rt._fused = None  # the step of separate calls
+        neutral._rt.stepper.separate()  # the step of separate calls
     actions = _actions(plain, 30)
     for a, b in zip(_rollout(plain, actions, 5), _rollout(neutral, actions, 5)):
         assert np.array_equal(a, b)

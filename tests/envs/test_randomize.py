@@ -53,7 +53,7 @@ def test_one_copy_steps_bit_for_bit_like_a_single_env_made_with_its_values(env_i
     if fused:
         bound(vec)
     else:
-        vec.unwrapped._rt._fused = None  # the step of separate calls
+        vec.unwrapped._rt.stepper.separate()  # the step of separate calls
     single = gym.make(env_id, **{name: value}).unwrapped
     values = np.full(n, vec.unwrapped.system.parameters[name])
     values[row] = value
@@ -221,7 +221,7 @@ def test_threads_step_per_copy_parameters_as_one_thread_does():
     n = 130  # more than one block of 64 rows
     values = np.linspace(0.05, 0.12, n)
     pair = [_vec(ARM, n, randomize={}, num_threads=t) for t in (1, 2)]
-    assert pair[1].unwrapped._rt._fused is None
+    assert pair[1].unwrapped._rt.stepper.fused is None
     out = []
     for vec in pair:
         vec.reset(seed=2, options={"params": {"Ibar2": values}})

@@ -15,13 +15,12 @@ import envs
 from agents.control.lqr_policy import LQRPolicy
 from envs import LagrangianEnv, LagrangianVectorEnv
 from envs.checks import DeclarationError
-from envs.parameters import constant_inputs
 from envs.randomize import Uniform
 from tests.binding import bound
 
 ARM = "Lagrange/TwoLinkArm-v1"
 DEFAULT = {"Ibar1": (0.05, 0.1)}
-TASK = dataclasses.replace(envs.arm.TASK, randomize=DEFAULT)
+TASK = dataclasses.replace(envs.tasks.arm.TASK, randomize=DEFAULT)
 
 
 def test_a_task_s_randomize_is_the_default_the_option_replaces_or_turns_off():
@@ -54,11 +53,11 @@ def test_a_task_s_randomize_is_the_default_the_option_replaces_or_turns_off():
 )
 def test_a_task_s_bad_randomize_is_refused_when_declared(randomize, message):
     with pytest.raises(DeclarationError, match=re.escape(message)):
-        dataclasses.replace(envs.arm.TASK, randomize=randomize)
+        dataclasses.replace(envs.tasks.arm.TASK, randomize=randomize)
 
 
 def test_a_task_s_randomize_naming_no_parameter_is_refused_when_the_env_is_made():
-    task = dataclasses.replace(envs.arm.TASK, randomize={"m22": (0.5, 1.0)})
+    task = dataclasses.replace(envs.tasks.arm.TASK, randomize={"m22": (0.5, 1.0)})
     with pytest.raises(ValueError, match="Did you mean 'm2'"):
         LagrangianEnv(task)
 
@@ -106,9 +105,9 @@ def test_a_given_value_outside_the_support_is_clipped_in_the_observation_only():
 
 
 def test_observed_parameters_appear_in_the_observation_table():
-    table = envs.docs.describe(envs.arm.TASK, randomize=DEFAULT, observe_params=True)
+    table = envs.docs.describe(envs.tasks.arm.TASK, randomize=DEFAULT, observe_params=True)
     assert "| 14 | param Ibar1 | 0.05 | 0.1 |  |" in table
-    assert "param" not in envs.docs.describe(envs.arm.TASK)
+    assert "param" not in envs.docs.describe(envs.tasks.arm.TASK)
 
 
 @pytest.mark.parametrize(
@@ -138,7 +137,7 @@ def test_task_functions_read_each_copy_s_own_parameters(fused):
     if fused:
         bound(vec)
     else:
-        vec.unwrapped._rt._fused = None
+        vec.unwrapped._rt.stepper.separate()
     values = np.full(n, 1.0)
     values[row] = 1.1
     vec.reset(seed=10, options={"params": {"l": values}})
@@ -171,7 +170,7 @@ def test_constants_are_computed_at_each_copy_s_values():
     assert p_rows[1] == single.unwrapped.plant.p  # every constant, recomputed
     assert p_rows.half_travel[0] == gym.make(CRANK).unwrapped.plant.p.half_travel
     # recomputed only where a parameter they read (R, l, h: the linkage) moved
-    read = constant_inputs(vec.unwrapped.plant)
+    read = vec.unwrapped.plant.constant_inputs
     assert [k for k, r in zip(vec.unwrapped.system.parameters, read) if r] == ["R", "l", "h"]
     for _ in range(30):
         a = np.full(vec.action_space.shape, 0.3, dtype=np.float32)
@@ -183,10 +182,25 @@ def test_a_task_function_that_cannot_read_p_by_row_keeps_it_nominal_and_is_named
     def height(x, a, goal, p):  # a scalar use of p: one record for all rows only
         return np.full(len(x.theta1), float(p.l) - 1.0)
 
-    base = envs.acrobot.TASK_V2
+    base = envs.tasks.acrobot.TASK_V2
     terms = tuple(dataclasses.replace(t, fn=height) if t.name == "height" else t
                   for t in base.terms)  # fmt: skip
     task = dataclasses.replace(base, name="AcrobotScalarP", terms=terms)
     with pytest.warns(RuntimeWarning, match="task function 'height' depend.* randomised 'l'"):
         env = LagrangianEnv(task, randomize={"l": (0.9, 1.1)})
     assert not env._rt.parameters.follows and env._rt.parameters.records is None
+
+
+def test_the_nominal_warning_compares_supports_where_the_plant_is_built():
+    """The store builds no plant: whether the record follows each copy is the plant's fact,
+    found by `Plant.build`; a plant keeps no second copy of its parameters by name."""
+    import dataclasses
+    from pathlib import Path
+
+    from envs import parameters
+    from envs.plant import Plant
+
+    source = Path(parameters.__file__).read_text(encoding="utf-8")
+    assert "Plant.build" not in source and "from .plant" not in source
+    fields = {f.name for f in dataclasses.fields(Plant)}
+    assert "params" not in fields and {"follows", "constant_inputs"} <= fields

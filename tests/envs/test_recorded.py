@@ -52,7 +52,7 @@ def _single(env_id, steps=50, **kwargs):
 def _vector(env_id, n=5, steps=60, separate=False, **kwargs):
     vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs)
     if separate:
-        vec.unwrapped._rt._fused = None  # the step of separate calls
+        vec.unwrapped._rt.stepper.separate()  # the step of separate calls
     else:
         bound(vec)
     rng = np.random.default_rng(2)

@@ -13,7 +13,8 @@ from gymnasium.vector import AutoresetMode
 
 import dynamics
 import envs
-from envs import arm
+from dynamics import stepping
+from envs.tasks import arm
 from envs.plant import Plant
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.matrix import over
@@ -38,7 +39,7 @@ def test_observation_inverse_maps_round_trip(env_id):
         x, g = env.state, env.goal
         obs = env.unwrapped._rt.O[0].astype(np.float64)
         # the float64 observation before rounding to float32 inverts exactly (round-off)
-        obs64 = env.unwrapped._rt._obs64[0]
+        obs64 = env.unwrapped._rt.arrays.obs64[0]
         back = plant.state_from_observation(obs64[None])[0]
         angles, values, _ = plant.observation.state_map
         seen = [i for i, *_ in angles] + [i for i, _ in values]
@@ -273,10 +274,9 @@ def test_rows_stepped_one_at_a_time_before_the_fused_step_step_as_the_lanes(
     for one_by_one in (True, False):
         vec = gym.make_vec(env_id, 9, vectorization_mode="vector_entry_point", **kwargs)
         rt = vec.unwrapped._rt
-        rt._fused, rt._one_by_one = None, one_by_one  # the step of separate calls
+        rt.stepper.separate(one_by_one)  # the step of separate calls
         if one_by_one:  # the lanes are never called
-            for name in ("step_unchecked", "step_rows_unchecked"):
-                monkeypatch.setattr(rt.system, name, lambda *a, **k: pytest.fail("lanes"))
+            monkeypatch.setattr(stepping, "erk_rows", lambda *a, **k: pytest.fail("lanes"))
         rng = np.random.default_rng(5)
         out = [vec.reset(seed=5)[0]]
         for _ in range(30):

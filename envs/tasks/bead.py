@@ -88,8 +88,8 @@ import numpy as np
 
 from dynamics import wrap
 
+from ..task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 from . import rendering
-from .task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 
 SPEED_LIMIT = 20.0
 """Bound on |r'| (m/s)."""

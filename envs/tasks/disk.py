@@ -107,8 +107,8 @@ import numpy as np
 
 from dynamics import wrap
 
+from ..task import Angle, AngleError, Derived, Goal, LQRHints, Task, Term, Value
 from . import rendering
-from .task import Angle, AngleError, Derived, Goal, LQRHints, Task, Term, Value
 
 LEAN_LIMIT = np.pi / 6
 """The episode terminates when |theta - pi/2| (the lean from upright) exceeds this (rad)."""

@@ -97,8 +97,8 @@ import numpy as np
 
 from dynamics import wrap
 
+from ..task import Angle, AngleError, Goal, Heuristic, LQRHints, Task, Term, Value
 from . import rendering
-from .task import Angle, AngleError, Goal, Heuristic, LQRHints, Task, Term, Value
 
 RATE_LIMIT = 8 * np.pi
 """Bound on |theta1'|, |theta2'| (rad/s): observation bound; beyond it the run diverged."""

@@ -96,9 +96,9 @@ import numpy as np
 
 from dynamics import wrap
 
+from ..task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 from . import rendering
 from .swing_up import swing_up_ppo
-from .task import Angle, Goal, Heuristic, LQRHints, Task, Term, Value
 
 RATE_LIMIT = 8 * np.pi
 """Bound on |theta1'|, |theta2'| (rad/s): observation bound; beyond it the run diverged."""

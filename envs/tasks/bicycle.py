@@ -112,9 +112,9 @@ import numpy as np
 
 from dynamics.bicycle import DEPENDENT_RATES, bicycle_system, upright_state
 
+from ..resolved import state_names
+from ..task import Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 from . import rendering_bicycle
-from .resolved import state_names
-from .task import Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 
 SPEED_RANGE = (2.0, 6.0)
 """Commanded speeds (m/s): below the self-stable range (4.29 to 6.02 m/s) and within it."""

@@ -83,8 +83,8 @@ import numpy as np
 
 from dynamics import wrap
 
+from ..task import Angle, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 from . import rendering
-from .task import Angle, Derived, Goal, Heuristic, LQRHints, Task, Term, Value
 
 RATE_LIMIT = 40 * np.pi
 """Bound on |theta'| (rad/s): observation bound; beyond it the run diverged."""
