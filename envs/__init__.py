@@ -15,7 +15,7 @@ A new system is a `Task` (see `envs.task`) on any model, registered with one cal
 `gymnasium.register` (`register` below is that call, spelled out).
 """
 
-import importlib
+import importlib.abc
 import sys
 import warnings
 
@@ -71,19 +71,31 @@ def _register_builtins() -> tuple[str, ...]:
 ENV_IDS: tuple[str, ...] = _register_builtins()
 
 _MOVED = ("arm", "acrobot", "disk", "bead", "crank", "bicycle", "swing_up", "rendering_bicycle")
-for _name in _MOVED:  # `import envs.arm` and `from envs.arm import TASK` keep working
-    sys.modules[f"{__name__}.{_name}"] = importlib.import_module(f".tasks.{_name}", __name__)
+
+
+def _moved(name: str) -> str:
+    return f"envs.{name} moved to envs.tasks.{name} (the built-in tasks' own wing): import that"
+
+
+class _MovedFinder(importlib.abc.MetaPathFinder):
+    """`import envs.arm` (the built-in tasks' home before the tasks wing) ends in one line
+    that names the new module, not a bare "No module named"."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        head, _, tail = fullname.rpartition(".")
+        if head == __name__ and tail in _MOVED:
+            raise ImportError(_moved(tail), name=fullname)
+        return None
+
+
+if not any(isinstance(f, _MovedFinder) for f in sys.meta_path):
+    sys.meta_path.append(_MovedFinder())
 
 
 def __getattr__(name: str):
-    """The built-in tasks' old home: `envs.arm` is `envs.tasks.arm` (with a warning)."""
+    """`envs.arm` (the old home of a built-in task) says where it went."""
     if name in _MOVED:
-        warnings.warn(
-            f"envs.{name} moved to envs.tasks.{name}; import it from there.",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return sys.modules[f"{__name__}.tasks.{name}"]
+        raise AttributeError(_moved(name))
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [

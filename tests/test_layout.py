@@ -7,6 +7,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from dynamics.system import System
 from envs.step import Step
 
@@ -86,3 +88,12 @@ def test_the_wings_arrows_point_one_way():
     assert _reaches("agents/learning", "agents.scoring") == []
     assert _reaches("agents/scoring", "agents.learning") != []
     assert "envs" not in _imports(ROOT / "envs" / "docs.py")
+
+
+@pytest.mark.parametrize(
+    "statement", ["import envs.arm", "from envs import disk", "from envs.bead import TASK"]
+)
+def test_a_built_in_task_s_old_home_says_where_it_went(statement):
+    """Before 1.0 the old home is no shim: importing it ends in one line naming the new one."""
+    with pytest.raises(ImportError, match=r"envs\.(arm|disk|bead) moved to envs\.tasks\."):
+        exec(statement, {})
