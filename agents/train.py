@@ -64,6 +64,7 @@ from .learning.rundir import (
     remove_stale_temporaries,
 )
 from .learning.vecenv import VECTORIZATIONS, make_envs
+from .scoring import fresh
 
 
 @dataclass
@@ -216,7 +217,11 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         # an evaluation's most vector steps: the episodes an eval env runs x the time limit
         steps = -(-o["eval_episodes"] // eval_envs) * episode_steps(env_id, task_of(env_id))
         clock = budgets.Clock(o["budget"] or float("inf"), steps, eval_envs)
-        solved = stops.solved_stop(run_dir, clock, env_id, hp) if o["budget"] else None
+        solved = None
+        if o["budget"]:
+            solved = stops.solved_stop(
+                run_dir, clock, lambda model, k: fresh.confirm(model, env_id, hp, k)
+            )
         evaluation = budgets.BudgetedEval(  # on the step schedule; in time for a budget
             eval_env,
             o["eval_freq"],

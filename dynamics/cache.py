@@ -307,13 +307,14 @@ def load(name: str, key: str, body: str | None = None) -> ModuleType | None:
     return module
 
 
-def function_cache(fn):
-    """numba's on-disk cache for `fn`, a task function a user wrote, inside this cache
-    (`pruning.FUNCTIONS`, bounded with the rest) instead of numba's default, the
-    `__pycache__` beside the user's source. numba's own cache class with a locator of its
-    documented kind (`numba.core.caching`); set it as the dispatcher's cache before the
-    first compile (what `njit(cache=True)` does with the default locator). OSError where
-    the cache cannot be used (the caller then compiles without a disk cache)."""
+def cache_function(dispatcher, fn) -> None:
+    """Give `dispatcher` (numba's, for `fn`, a task function a user wrote, before its first
+    compile) an on-disk cache inside this cache (`pruning.FUNCTIONS`, bounded with the rest)
+    instead of numba's default, the `__pycache__` beside the user's source: numba's own cache
+    class with a locator of its documented kind (`numba.core.caching`), set as
+    `njit(cache=True)` sets the default one (numba has no public argument for it), and kept
+    true to helpers edited in other files (`keep_numba_cache_true`). OSError where the cache
+    cannot be used (the caller then compiles without a disk cache)."""
     root = cache_dir() / pruning.FUNCTIONS
     root.mkdir(mode=0o700, exist_ok=True)
     cache = _function_cache_class()(fn)
@@ -321,7 +322,8 @@ def function_cache(fn):
     if not _numba_index_sound(index):
         cache.flush()  # a damaged index: numba would crash on it; recompile instead
     pruning.mark_used(index)
-    return cache
+    dispatcher._cache = cache
+    keep_numba_cache_true(dispatcher, fn)
 
 
 def _numba_index_sound(index: Path) -> bool:

@@ -2,7 +2,7 @@
 
 An entry is what one build leaves: a generated module (a model or an env's fused step) with
 numba's files for it, or numba's files for one task function a user wrote (kept in the
-cache's `functions/` folder, `dynamics.cache.function_cache`). Using an entry marks it used
+cache's `functions/` folder, `dynamics.cache.cache_function`). Using an entry marks it used
 (the module's or the index file's modification time is set to now), so every edit of a
 user's module, which makes a new entry, leaves the old one to age out.
 

@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from dynamics.cache import function_cache, keep_numba_cache_true
+from dynamics.cache import cache_function
 
 from . import checks, names
 from .task import Derived
@@ -24,7 +24,7 @@ def name_of(fn) -> str:
 def compile_task_function(fn, args):
     """`fn` compiled with numba, bounds-checked (an index slip raises IndexError, never
     reads another buffer) and cached on disk in the model cache (`dynamics.cache.
-    function_cache`, not beside the user's source), or `fn` itself when
+    cache_function`, not beside the user's source), or `fn` itself when
     numba cannot type it; `args` is a sample call used to find out."""
     key = (fn, tuple(type(a) for a in args))
     if key in _COMPILED:
@@ -39,8 +39,7 @@ def compile_task_function(fn, args):
                 warnings.simplefilter("ignore", numba.NumbaWarning)
                 jitted = numba.njit(boundscheck=True)(fn)
                 if cache:  # numba's files in the model cache, not the user's __pycache__
-                    jitted._cache = function_cache(fn)
-                    keep_numba_cache_true(jitted, fn)  # helpers' edits in other files
+                    cache_function(jitted, fn)
                 signature = tuple(as_fused(numba.typeof(a)) for a in args)
                 jitted.compile(signature)  # the types the fused step calls it with
                 jitted.overloads[signature].entry_point(*args)

@@ -1,4 +1,5 @@
-"""The confirmation of a candidate that met the stop rule, on fresh starts.
+"""The confirmation rule of a candidate that met the stop rule, on fresh starts (the
+scoring itself is `agents.scoring.fresh.confirm`, which training hands to its stop).
 
 Three evaluations of 20 episodes at >= 80 % in a row select lucky agents as well as good
 ones: a run makes dozens of tries, and the streak it stops on is the first that passed
@@ -20,8 +21,6 @@ a fresh 20 is at most 1.1 % (4.1 % for a run that makes ten attempts at the same
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 EPISODES = 200
@@ -40,42 +39,13 @@ def needed(episodes: int | None = None, rate: float | None = None) -> int:
     return int(np.ceil((RATE if rate is None else rate) * episodes - 1e-9))
 
 
-def confirm(model, env_id: str, hp: dict, attempt: int, episodes: int | None = None) -> dict:
-    """Score `model` (as it is now, with its statistics and the run's hand-over) on
-    `episodes` fresh starts, seeds SEED + attempt x episodes onwards; a record with the
-    successes, the rate, Wilson's 95 % interval, the seeds, the seconds and `passed`."""
-    from ..scoring.episodes import score
-    from ..scoring.report import wilson_interval
-    from ..scoring.trained import SB3Policy, with_handover
-
-    episodes = EPISODES if episodes is None else int(episodes)
-    first = SEED + attempt * episodes
-    start = time.perf_counter()
-    policy = SB3Policy.of_model(model, hp.get("handover"))
-    stats = score(env_id, lambda venv: with_handover(policy, venv), episodes, first)
-    k = int(np.sum(stats.successes))
-    interval = wilson_interval(k, episodes)
-    return {
-        "episodes": episodes,
-        "successes": k,
-        "rate": round(k / episodes, 4),
-        "wilson95": [round(interval.low, 4), round(interval.high, 4)],
-        "seeds": [first, first + episodes - 1],
-        "needed": needed(episodes),
-        "passed": k >= needed(episodes),
-        "seconds": round(time.perf_counter() - start, 2),
-    }
-
-
 def promise(episodes: int | None = None, rate: float | None = None, fresh: int = 20,
             tries: int = 10) -> dict:  # fmt: skip
     """The numbers of the module docstring: Wilson's lower bound at the least confirmed
     rate, the chance that an agent of that true rate scores below 80 % on `fresh` episodes,
     and the worst case over true rates of being confirmed and then scoring below 80 %
     (at one attempt, and at `tries` attempts of the same rate)."""
-    from scipy.stats import binom
-
-    from ..scoring.report import wilson_interval
+    from scipy.stats import binom, binomtest
 
     episodes = EPISODES if episodes is None else episodes
     k = needed(episodes, rate)
@@ -84,7 +54,7 @@ def promise(episodes: int | None = None, rate: float | None = None, fresh: int =
     once = binom.sf(k - 1, episodes, p)
     fails = binom.cdf(below, fresh, p)
     return {
-        "wilson_low": wilson_interval(k, episodes).low,
+        "wilson_low": binomtest(k, episodes).proportion_ci(method="wilson").low,
         "fresh_below_at_rate": float(binom.cdf(below, fresh, k / episodes)),
         "worst_once": float(np.max(once * fails)),
         "worst_tries": float(np.max((1 - (1 - once) ** tries) * fails)),

@@ -13,18 +13,13 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from ..common import atomic_path, write_atomic
 from . import budget
-from . import confirm as confirmation
 from .budget import BudgetedEval, Clock
 
 
-def solved_stop(run_dir: Path, clock: Clock, env_id: str, hp: dict) -> SolvedStop:
-    """The stop of a budget run on `env_id` trained with `hp`: the rule, then the
-    confirmation of its candidates on fresh starts."""
-
-    def check(model, attempt: int) -> dict:
-        return confirmation.confirm(model, env_id, hp, attempt)
-
-    return SolvedStop(run_dir, clock, confirm=check)
+def solved_stop(run_dir: Path, clock: Clock, confirm) -> SolvedStop:
+    """The stop of a budget run: the rule, then `confirm(model, attempt) -> record` of its
+    candidates on fresh starts (the caller's: `agents.scoring.fresh.confirm` for training)."""
+    return SolvedStop(run_dir, clock, confirm=confirm)
 
 
 class SolvedStop(BaseCallback):
@@ -49,7 +44,8 @@ class SolvedStop(BaseCallback):
         self.run_dir, self.clock = Path(run_dir), clock
         self.rate = float(budget.SOLVED_RATE if rate is None else rate)
         self.times = int(budget.SOLVED_TIMES if times is None else times)
-        self.confirm = confirm  # (model, attempt) -> a record with "passed" (confirm.confirm)
+        # (model, attempt) -> a record with "passed" (agents.scoring.fresh.confirm)
+        self.confirm = confirm
         self.streak = 0
         self.best: tuple[float, float, float] | None = None  # (confirmed?, rate, return)
         self.solved: dict | None = None

@@ -13,6 +13,7 @@ from agents import evaluate as programs
 from agents.learning import confirm as confirmation
 from agents.learning.hparams import load_hyperparams
 from agents.learning.vecenv import make_envs
+from agents.scoring import fresh
 from agents.train import train
 
 BEAD = next(e for e in envs.ENV_IDS if "/BeadOnRod-" in e)
@@ -36,7 +37,7 @@ def test_training_s_evaluation_the_confirmation_and_the_check_see_the_same_episo
     np.testing.assert_allclose(sorted(returns), sorted(check.returns), rtol=1e-5, atol=1e-3)
     assert sorted(lengths) == sorted(check.lengths.tolist())
     # the confirmation scores the live model as agents.evaluate scores the saved one
-    record = confirmation.confirm(model, BEAD, hp, attempt=0, episodes=n)
+    record = fresh.confirm(model, BEAD, hp, attempt=0, episodes=n)
     again = programs.evaluate(BEAD, str(result.model_path), n, confirmation.SEED)
     assert record["successes"] == int(again.successes.sum())
     assert record["seeds"] == [confirmation.SEED, confirmation.SEED + n - 1]

@@ -12,8 +12,8 @@ from agents.control.bicycle_policy import BicycleLQRPolicy
 from agents.control.linear import discretize
 from agents.evaluate import evaluate, make_agent
 from dynamics.bicycle import reduced_linearization
-from envs.tasks import bicycle
 from envs.checks import Unsupported
+from envs.tasks import bicycle
 
 # the bicycle's kernels are compiled for this file alone (its first test: 13.5 s of CPU from a
 # cold cache): with -m slow, as every model compiled for one test (CI runs them); the fast

@@ -15,8 +15,8 @@ from numba import njit
 
 import envs
 from envs import buffers
-from envs.tasks import arm
 from envs.fused import fingerprint
+from envs.tasks import arm
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.binding import bound
 from tests.envs.test_runtime import with_first_term

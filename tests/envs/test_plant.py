@@ -13,8 +13,8 @@ import pytest
 import dynamics
 import envs
 from envs import observation
-from envs.tasks import arm, disk
 from envs.plant import Plant
+from envs.tasks import arm, disk
 
 ARM = "Lagrange/TwoLinkArm-v1"
 ENVS = Path(envs.__file__).parent

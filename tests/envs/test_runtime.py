@@ -14,8 +14,8 @@ from gymnasium.vector import AutoresetMode
 import dynamics
 import envs
 from dynamics import stepping
-from envs.tasks import arm
 from envs.plant import Plant
+from envs.tasks import arm
 from examples import cart_pole, double_cart_pole, furuta  # noqa: F401  (registers them)
 from tests.matrix import over
 
