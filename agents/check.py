@@ -169,8 +169,12 @@ def check_env(
     model, score = result.model_path, programs.evaluate
     stats, eval_s, warm_s = learned.warm_evaluate(score, env_id, str(model), episodes, seed)
     alone, lqr_note, _, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
-    notes = (randomization.describe(randomize) if randomize else "", lqr_note,
-             learned.solved_note(run_dir, seconds), learned.resumed_note(run_dir))  # fmt: skip
+    notes = (
+        randomization.describe(randomize) if randomize else "",
+        lqr_note,
+        learned.solved_note(run_dir, seconds),
+        learned.resumed_note(run_dir),
+    )
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
     log(
         f"  {algo:>9}: {stats.summary()} ({training.timesteps:,} steps, "
@@ -268,9 +272,22 @@ def run_check(
         print(f"[{i}/{len(env_ids)}] {env_id}", file=sys.stderr, flush=True)
         log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
         rows += check_env(
-            env_id, algo, episodes, seed, out, timesteps, fresh or bool(timed[env_id]),
-            progress, log, hyperparams, report, randomize, timed[env_id], diagnoses, refused,
-        )  # fmt: skip
+            env_id,
+            algo,
+            episodes,
+            seed,
+            out,
+            timesteps,
+            fresh or bool(timed[env_id]),
+            progress,
+            log,
+            hyperparams,
+            report,
+            randomize,
+            timed[env_id],
+            diagnoses,
+            refused,
+        )
     total = time.perf_counter() - start
     diagnosis = "".join(f"- {line}\n" for line in diagnoses)
     diagnosis = diagnosis and f"\n## Where the trained agents missed\n\n{diagnosis}"
@@ -350,9 +367,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     params.add_option(parser)
     randomization.add_option(
-        parser, "the training envs", "; the run trains in a directory of its own, and every "
-        "agent is scored on the nominal env",
-    )  # fmt: skip
+        parser,
+        "the training envs",
+        "; the run trains in a directory of its own, and every agent is scored on the nominal env",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
     return parser
 
@@ -375,9 +393,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with params.applied_all(values):
             run_check(
-                env_ids, args.algo, args.episodes, args.seed, args.out, args.timesteps,
-                args.fresh, not args.no_progress, args.hyperparams, randomize, args.budget,
-            )  # fmt: skip
+                env_ids,
+                args.algo,
+                args.episodes,
+                args.seed,
+                args.out,
+                args.timesteps,
+                args.fresh,
+                not args.no_progress,
+                args.hyperparams,
+                randomize,
+                args.budget,
+            )
     except UserError as exc:
         fail(parser, exc)
     except TrainingInterrupted as stopped:

@@ -188,9 +188,14 @@ def main(argv: list[str] | None = None) -> int:
         randomize = parse_option(args.randomize)
         with params.applied(env_id, args.params and params.load(args.params, env_id)):
             stats = evaluate(
-                env_id, args.agent, args.episodes, args.seed, args.video, not args.stochastic,
+                env_id,
+                args.agent,
+                args.episodes,
+                args.seed,
+                args.video,
+                not args.stochastic,
                 randomize,
-            )  # fmt: skip
+            )
     except (ValueError, FileNotFoundError) as exc:
         fail(parser, exc)
     where = f" ({describe(randomize)})" if randomize else ""

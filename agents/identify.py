@@ -56,8 +56,10 @@ def _friction(text: str | None):
     for part in text.split(","):
         name, sep, kind = part.partition("=")
         if not sep or not name:
-            raise UserError(f"--friction takes all, or COORD=KIND and JOINT:RATE=KIND entries "
-                            f"(e.g. elbow:theta2-theta1=viscous), got {text!r}.")  # fmt: skip
+            raise UserError(
+                f"--friction takes all, or COORD=KIND and JOINT:RATE=KIND entries "
+                f"(e.g. elbow:theta2-theta1=viscous), got {text!r}."
+            )
         joint, colon, rate = name.partition(":")
         out[joint] = (rate, kind) if colon else kind
     return out
@@ -111,8 +113,10 @@ def load_record(path: Path, env_id: str | None = None) -> dict:
 
     if not path.is_file():
         raise UserError(f"--data: no record at {path}" + (" (a folder)." if path.is_dir() else "."))
-    what = ("an .npz record (a zip of the arrays t, q, [qd,] u, as --record writes and "
-            "numpy.savez makes)")  # fmt: skip
+    what = (
+        "an .npz record (a zip of the arrays t, q, [qd,] u, as --record writes and "
+        "numpy.savez makes)"
+    )
     try:
         loaded = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError, zipfile.BadZipFile):
@@ -256,10 +260,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="sensor noise std POSITIONS,RATES: --record adds it to the record (default 0,0); "
         "--data fits with it (default: the record's own noise key, else estimated from it)",
     )
-    p.add_argument("--rate", type=float, default=100.0,
-                   help="samples per second of --record (the env stepped at this rate; 100)")
-    p.add_argument("--seconds", type=float, default=20.0,
-                   help=f"record length (s), at most {MAX_SECONDS:g}")  # fmt: skip
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=100.0,
+        help="samples per second of --record (the env stepped at this rate; 100)",
+    )
+    p.add_argument(
+        "--seconds", type=float, default=20.0, help=f"record length (s), at most {MAX_SECONDS:g}"
+    )
     p.add_argument("--fraction", type=float, default=0.5, help="excitation peak / action range")
     p.add_argument("--feedback", choices=["none", "lqr"], help="default: open loop, then LQR")
     p.add_argument("--seed", type=int, default=0)
@@ -296,8 +305,17 @@ def main(argv=None) -> int:
             plant = _assignments(args.plant, "--plant")
             if not (math.isfinite(args.rate) and 1 <= args.rate <= 10_000):
                 raise UserError(f"--rate must be in [1, 10000] per second, got {args.rate:g}.")
-            data = record(env_id, args.seconds, plant, noise or (0.0, 0.0), args.fraction,
-                          args.seed, args.feedback, args.candidates, args.rate)  # fmt: skip
+            data = record(
+                env_id,
+                args.seconds,
+                plant,
+                noise or (0.0, 0.0),
+                args.fraction,
+                args.seed,
+                args.feedback,
+                args.candidates,
+                args.rate,
+            )
             with atomic_path(args.record, suffix=".npz") as tmp:
                 np.savez(tmp, **data)
             how = "open loop" if str(data["feedback"]) == "none" else f"under {data['feedback']}"
@@ -310,16 +328,26 @@ def main(argv=None) -> int:
         data = load_record(args.data, env_id)
         unknown = args.unknown.split(",") if args.unknown else None
         start = time.perf_counter()
-        result = fit(env_id, data, unknown, _friction(args.friction),
-                     _assignments(args.given, "--given"), noise)  # fmt: skip
+        result = fit(
+            env_id,
+            data,
+            unknown,
+            _friction(args.friction),
+            _assignments(args.given, "--given"),
+            noise,
+        )
         took = time.perf_counter() - start
         write_results(env_id, result, data, args.out)
         print(report(env_id, result, data))
         if result.undetermined:
-            print("NOT DETERMINED by this record (kept at their given values): "
-                  + ", ".join(result.undetermined))  # fmt: skip
-        print(f"identified in {took:.2f} s; wrote {args.out}/parameters.yml, report.md, "
-              "identification.png")  # fmt: skip
+            print(
+                "NOT DETERMINED by this record (kept at their given values): "
+                + ", ".join(result.undetermined)
+            )
+        print(
+            f"identified in {took:.2f} s; wrote {args.out}/parameters.yml, report.md, "
+            "identification.png"
+        )
     except UserError as exc:
         fail(p, exc)
     except ValueError as exc:

@@ -270,8 +270,7 @@ def run_on_plant(args, env_id: str, plant: dict, motors: dict) -> int:
     design_env = gym.make(env_id, **motors)
     design_env.reset(seed=args.seed)
     said = ", ".join(f"{k}={v:g}" for k, v in design_params.items()) or "its nominal values"
-    print(f"{env_id}: LQR designed on the model with {said}; scored on the plant of "
-          f"{args.plant}")  # fmt: skip
+    print(f"{env_id}: LQR designed on the model with {said}; scored on the plant of {args.plant}")
     print(describe(LQRPolicy(design_env, Q=args.q, R=args.r).design()))
     designs = (
         ("LQR (this design)", lambda vec: LQRPolicy(design_env, Q=args.q, R=args.r)),
@@ -279,10 +278,13 @@ def run_on_plant(args, env_id: str, plant: dict, motors: dict) -> int:
         ("zero input", ZeroPolicy),
     )
     for name, pol in designs:
-        r = evaluate_near(env_id, pol, args.episodes, args.seed, scale=args.scale,
-                          **plant, **motors)  # fmt: skip
-        print(f"{name:>26}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}) "
-              f"on the plant, return {r.returns.mean():.2f} (sd {r.returns.std():.2f})")
+        r = evaluate_near(
+            env_id, pol, args.episodes, args.seed, scale=args.scale, **plant, **motors
+        )
+        print(
+            f"{name:>26}: success {r.success.sum()}/{args.episodes} ({r.success_rate:.0%}) "
+            f"on the plant, return {r.returns.mean():.2f} (sd {r.returns.std():.2f})"
+        )
     design_env.close()
     return 0
 

@@ -128,8 +128,11 @@ def table(rows: list[dict], seconds: float, header: str) -> str:
     ]
     for r in rows:
         budget = r.get("budget_s") or seconds  # each run's own budget, where it says it
-        to_s = f"{r['to80_s']:.0f}" if r["to80_s"] != "" else (
-            f"not in {budget:g} s" if budget else "not in its budget")
+        to_s = (
+            f"{r['to80_s']:.0f}"
+            if r["to80_s"] != ""
+            else (f"not in {budget:g} s" if budget else "not in its budget")
+        )
         to_n = f"{r['to80_steps']:,}" if r["to80_steps"] != "" else ""
         lines.append(
             f"| {r['system']} | {r['algo']} | {r['seed']} | {r['success']:.0%} "

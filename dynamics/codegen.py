@@ -118,9 +118,13 @@ def _lanes(n: int, nu: int, prog: Program, n_p: int) -> str:
     variants = [
         ("derivative_lanes(T, XS, U, p, D)", [f"p{k} = p[{k}]" for k in range(n_p)], [], []),
         ("derivative_lanes_p(T, XS, U, P, D)", [], per_row, []),
-        ("derivative_lanes_w(T, XS, U, P, W, D)", [], per_row,
-         [f"r{i} = r{i} + W[{i}, b]" for i in range(n)]),
-    ]  # fmt: skip
+        (
+            "derivative_lanes_w(T, XS, U, P, W, D)",
+            [],
+            per_row,
+            [f"r{i} = r{i} + W[{i}, b]" for i in range(n)],
+        ),
+    ]
     text = []
     for signature, head, row_head, forces in variants:
         lines = ["", "", '@njit(cache=True, error_model="numpy")', f"def {signature}:"]

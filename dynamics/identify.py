@@ -168,9 +168,11 @@ def identify(
     cat = catalogue(full)
     names = list(cat.defaults)
     unknown = _unknown(base_model, unknown) + [
-        p for c, (kind, _) in setting.items()
-        for p, k in zip(friction_names(c), ("viscous", "coulomb")) if k in kind
-    ]  # fmt: skip
+        p
+        for c, (kind, _) in setting.items()
+        for p, k in zip(friction_names(c), ("viscous", "coulomb"))
+        if k in kind
+    ]
     values = dict(cat.defaults) | _given(full, given)
     rec = regression.check_record(data, len(cat.coordinates), len(cat.inputs), noise)
     reg = Regressor(full, unknown)
@@ -184,15 +186,21 @@ def identify(
         _check_rows(rows, rec)
         W = regression.random_regressor(reg, rec, p, seed)
         b = estimate.base(W, estimate.preference(lin, cat.units))
-        spread = _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed,
-                               rows.noise)  # fmt: skip
+        spread = _noise_spread(reg, rec, p, window, span, lin, b, values, full, seed, rows.noise)
         fit = _determined_fit(rows, lin, b, values, full, spread, held)
         _refuse_unphysical(full, fit, values)
         fitted = _fitted(rows, rec, lin, b, fit)
     else:  # only unknowns that enter nonlinearly: simulation error alone
         b = estimate.Base([], [], np.zeros((0, 0)))
-        fit = Fit(dict(values), {}, np.zeros(0), np.zeros(0), np.zeros(len(cat.coordinates)),
-                  float("nan"), [])  # fmt: skip
+        fit = Fit(
+            dict(values),
+            {},
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(len(cat.coordinates)),
+            float("nan"),
+            [],
+        )
         fitted, refine = {}, True
     if refine is None:
         refine = bool(reg.nonlinear)
@@ -282,15 +290,21 @@ def _check_rows(rows: regression.Rows, rec: regression.Record) -> None:
     """ValueError when the record's equations overflow (values far outside the model's
     range: wrong units) or when it holds no motion the equations can see."""
     if not (np.isfinite(rows.A).all() and np.isfinite(rows.y).all()):
-        raise ValueError("data: the model's equations overflow on this record (values far "
-                         "outside its range); check that q, qd, u are in SI units.")
+        raise ValueError(
+            "data: the model's equations overflow on this record (values far "
+            "outside its range); check that q, qd, u are in SI units."
+        )
     if not np.abs(rows.A).any():
-        raise ValueError("data: the record does not excite the unknowns (their equations' "
-                         "columns are all zero); record the system under an exciting input.")
+        raise ValueError(
+            "data: the record does not excite the unknowns (their equations' "
+            "columns are all zero); record the system under an exciting input."
+        )
     if not np.abs(rows.y).max() > 1e-12 * np.abs(rows.A).max():
-        raise ValueError("data: nothing in the record but the unknowns does work (no input, "
-                         "no known force), so it tells their ratios, not their scale; record "
-                         "under an input, or fix one of them (given=, fewer unknown=).")
+        raise ValueError(
+            "data: nothing in the record but the unknowns does work (no input, "
+            "no known force), so it tells their ratios, not their scale; record "
+            "under an input, or fix one of them (given=, fewer unknown=)."
+        )
 
 
 def _fitted(rows: regression.Rows, rec: regression.Record, lin, b, fit) -> dict:
@@ -314,8 +328,10 @@ def _unknown(model, unknown) -> list[str]:
     if isinstance(unknown, str):
         unknown = [unknown]
     if len(unknown) == 0:
-        raise ValueError("unknown: empty; name at least one parameter to fit, or None for "
-                         f"the inertial ones ({', '.join(inertial(model))}).")  # fmt: skip
+        raise ValueError(
+            "unknown: empty; name at least one parameter to fit, or None for "
+            f"the inertial ones ({', '.join(inertial(model))})."
+        )
     for name in unknown:
         if name not in names:
             hint = did_you_mean(str(name), names)
@@ -373,8 +389,14 @@ def _lower(full, names: list[str], values: dict) -> dict[str, float]:
     return out
 
 
-def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, full,
-         held: dict | None = None) -> Fit:  # fmt: skip
+def _fit(
+    rows: regression.Rows,
+    lin: list[str],
+    b: estimate.Base,
+    values: dict,
+    full,
+    held: dict | None = None,
+) -> Fit:
     """Weighted, noise-compensated least squares of the base parameters, the unknowns in
     `held` kept at their given values (their columns moved to the target), refitted under
     the model's physical constraints where the estimate breaks them. `held` maps each to
@@ -398,8 +420,15 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
 
     if not free:  # everything held: nothing to fit
         r = rows.y - A_I @ prior
-        return Fit(theta_of(np.zeros(0)), {}, prior, np.full(len(I), np.nan),
-                   _residual_rms(rows, r), float("nan"), violated)  # fmt: skip
+        return Fit(
+            theta_of(np.zeros(0)),
+            {},
+            prior,
+            np.full(len(I), np.nan),
+            _residual_rms(rows, r),
+            float("nan"),
+            violated,
+        )
 
     def noise(w_eq):
         if rows.noise is None:
@@ -407,8 +436,10 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
         CA, cy = rows.noise
         C = CA[:, I][:, :, I]
         c = cy[:, I] - C[:, :, fixed] @ prior[fixed]  # the held columns' noise is in y now
-        return (np.einsum("e,ekl->kl", w_eq**2, C[:, free][:, :, free]),
-                np.einsum("e,ek->k", w_eq**2, c[:, free]))  # fmt: skip
+        return (
+            np.einsum("e,ekl->kl", w_eq**2, C[:, free][:, :, free]),
+            np.einsum("e,ek->k", w_eq**2, c[:, free]),
+        )
 
     ones = np.ones(rows.n_eq)
     first = estimate.compensated(A, y, *noise(ones))
@@ -425,8 +456,9 @@ def _fit(rows: regression.Rows, lin: list[str], b: estimate.Base, values: dict, 
     sigma = np.array([np.sqrt(np.mean(r[rows.equation == e] ** 2)) for e in range(rows.n_eq)])
     w_eq = 1.0 / np.maximum(sigma, 1e-12 * sigma.max()) if sigma.max() > 0 else np.ones_like(sigma)
     Aw_, yw_ = A * w_eq[rows.equation][:, None], y * w_eq[rows.equation]
-    weighted = estimate.compensated(Aw_, yw_, *noise(w_eq)) if compensate else (
-        Aw_, yw_, Aw_.T @ Aw_)  # fmt: skip
+    weighted = (
+        estimate.compensated(Aw_, yw_, *noise(w_eq)) if compensate else (Aw_, yw_, Aw_.T @ Aw_)
+    )
     if weighted is None:  # weighting made the noise outweigh a direction: equal weights
         w_eq = ones
         weighted = first
@@ -512,9 +544,11 @@ def _undetermined(fit: Fit, held: dict, values: dict) -> tuple[str, str] | None:
     if worst is None:
         return None
     how = f"{rel_worst:.0%}" if rel_worst < 10 else "more than 1000 %"
-    why = (f"the record determines it only to {how} (relative standard error, above "
-           f"{REL_STD:.0%}: {fit.theta[worst]:.3g} +- {fit.std[worst]:.2g}); kept at its "
-           f"given value {values[worst]:.6g}")  # fmt: skip
+    why = (
+        f"the record determines it only to {how} (relative standard error, above "
+        f"{REL_STD:.0%}: {fit.theta[worst]:.3g} +- {fit.std[worst]:.2g}); kept at its "
+        f"given value {values[worst]:.6g}"
+    )
     return worst, why
 
 
@@ -539,8 +573,11 @@ def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
     starts = np.arange(0, T - 1 - S, S)
     if len(starts) < 1:
         raise ValueError(f"data: too short for a simulation segment of {SEGMENT} s.")
-    qd = rec.qd if rec.qd is not None else savgol_filter(rec.q, 11, POLYORDER, deriv=1,
-                                                         delta=h, axis=0)  # fmt: skip
+    qd = (
+        rec.qd
+        if rec.qd is not None
+        else savgol_filter(rec.q, 11, POLYORDER, deriv=1, delta=h, axis=0)
+    )
     X0 = np.hstack([rec.q[starts], qd[starts]])
     measured = np.stack([rec.q[starts + j + 1] for j in range(S)])
     scale = np.maximum(rec.q.std(0), 1e-6)
@@ -574,11 +611,20 @@ def _refine(model, rec: regression.Record, fit: Fit, names: list[str]) -> Fit:
         combo = " + ".join(f"{d[j]:.3g} d{names[j]}" for j in involved)
         for j in involved:  # the start fits the record as well: kept, never moved along it
             z[j] = z0[j]
-            weak[names[j]] = (f"the record does not change along {combo} (simulation "
-                              f"error); held at {z0[j]:.6g}")  # fmt: skip
+            weak[names[j]] = (
+                f"the record does not change along {combo} (simulation error); held at {z0[j]:.6g}"
+            )
     theta = fit.theta | dict(zip(names, z.tolist()))
-    return Fit(theta, fit.std | dict(zip(names, std.tolist())), fit.beta, fit.beta_std,
-               fit.residual_rms, fit.condition, fit.violated, weak)  # fmt: skip
+    return Fit(
+        theta,
+        fit.std | dict(zip(names, std.tolist())),
+        fit.beta,
+        fit.beta_std,
+        fit.residual_rms,
+        fit.condition,
+        fit.violated,
+        weak,
+    )
 
 
 def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit, held: dict):
@@ -602,14 +648,16 @@ def _result(base_model, full, setting, unknown, reg, b: estimate.Base, fit: Fit,
     for k in undetermined:
         std[k] = float("nan")
     precision = {
-        k: abs(s / fit.theta[k]) if fit.theta[k] else float("inf")
-        for k, s in std.items() if s == s
-    }  # fmt: skip
+        k: abs(s / fit.theta[k]) if fit.theta[k] else float("inf") for k, s in std.items() if s == s
+    }
     friction = {
-        c: {kind: float(fit.theta[name])
-            for kind, name in zip(("viscous", "coulomb"), friction_names(c)) if name in fit.theta}
+        c: {
+            kind: float(fit.theta[name])
+            for kind, name in zip(("viscous", "coulomb"), friction_names(c))
+            if name in fit.theta
+        }
         for c in setting
-    }  # fmt: skip
+    }
     parameters = {k: float(fit.theta[k]) for k in catalogue(base_model).defaults}
     return Identification(
         parameters=parameters,

@@ -113,8 +113,13 @@ def mark_used(path: Path) -> None:
         os.utime(path)
 
 
-def prune(root: Path, max_bytes: int | None = None, older_than: float | None = None,
-          grace: float = GRACE_S, now: float | None = None) -> list[Entry] | None:  # fmt: skip
+def prune(
+    root: Path,
+    max_bytes: int | None = None,
+    older_than: float | None = None,
+    grace: float = GRACE_S,
+    now: float | None = None,
+) -> list[Entry] | None:
     """Remove the least recently used entries until the cache holds at most `max_bytes`,
     and every entry unused for `older_than` seconds; never one used within `grace`
     seconds. Returns the removed entries, or None when another process is pruning."""

@@ -96,9 +96,11 @@ def _noise(q, qd, noise) -> tuple[np.ndarray, np.ndarray | None, str]:
     note = f"estimated from the record's {kind}: std " + ", ".join(f"{v:.3g}" for v in s)
     if not told.all():
         which = ", ".join(str(i) for i in np.flatnonzero(~told))
-        note += (f"; for coordinate(s) {which} the motion hides the noise at this sampling "
-                 "rate (the figure is only an upper bound): not compensated there, so those "
-                 "estimates may be shrunk; give noise= (--noise) if you know it")
+        note += (
+            f"; for coordinate(s) {which} the motion hides the noise at this sampling "
+            "rate (the figure is only an upper bound): not compensated there, so those "
+            "estimates may be shrunk; give noise= (--noise) if you know it"
+        )
         s = np.where(told, s, 0.0)
     if qd is not None:
         sq, _ = noise_std(q)
@@ -118,8 +120,13 @@ def _real(value, key: str) -> np.ndarray:
     """data[key] as a float array; ValueError (one line) unless it holds real numbers."""
     a = np.asarray(value)
     if a.dtype.kind not in "iuf":
-        what = {"c": "complex numbers", "b": "booleans", "U": "text", "S": "bytes",
-                "O": "objects"}.get(a.dtype.kind, f"dtype {a.dtype}")  # fmt: skip
+        what = {
+            "c": "complex numbers",
+            "b": "booleans",
+            "U": "text",
+            "S": "bytes",
+            "O": "objects",
+        }.get(a.dtype.kind, f"dtype {a.dtype}")
         raise ValueError(f"data[{key!r}]: {what} ({a.dtype}); a record holds real numbers.")
     return a.astype(float)
 
@@ -148,24 +155,31 @@ def check_record(data, n: int, nu: int, noise=None) -> Record:
         bad = ~np.isfinite(a)
         if bad.any():
             where = np.argwhere(bad)[0]
-            raise ValueError(f"data[{key!r}]: {a[tuple(where)]} at {tuple(where.tolist())}; "
-                             "a record holds finite numbers only.")  # fmt: skip
+            raise ValueError(
+                f"data[{key!r}]: {a[tuple(where)]} at {tuple(where.tolist())}; "
+                "a record holds finite numbers only."
+            )
         big = float(np.abs(a).max())
         if big > HUGE:
-            raise ValueError(f"data[{key!r}]: a value of magnitude {big:.3g}; a record's values "
-                             f"are SI quantities below {HUGE:g} (check the units).")  # fmt: skip
-    still = np.ptp(got["q"], axis=0).max() == 0 and (
-        "qd" not in got or not np.abs(got["qd"]).any())  # fmt: skip
+            raise ValueError(
+                f"data[{key!r}]: a value of magnitude {big:.3g}; a record's values "
+                f"are SI quantities below {HUGE:g} (check the units)."
+            )
+    still = np.ptp(got["q"], axis=0).max() == 0 and ("qd" not in got or not np.abs(got["qd"]).any())
     if still:
-        raise ValueError("data: the record does not move (every q constant): it cannot tell "
-                         "any parameter; record the system under an exciting input.")  # fmt: skip
+        raise ValueError(
+            "data: the record does not move (every q constant): it cannot tell "
+            "any parameter; record the system under an exciting input."
+        )
     dt = np.diff(t)
     h = float(np.mean(dt))
     if not h > 0 or np.abs(dt - h).max() > 1e-6 * h:
         raise ValueError("data['t'] must be increasing with a uniform step (resample first).")
     if h > MAX_STEP:
-        raise ValueError(f"data['t']: a step of {h:g} s; a record's time is in seconds and "
-                         f"its step at most {MAX_STEP:g} s (milliseconds given as seconds?).")
+        raise ValueError(
+            f"data['t']: a step of {h:g} s; a record's time is in seconds and "
+            f"its step at most {MAX_STEP:g} s (milliseconds given as seconds?)."
+        )
     given = noise
     if noise is not None:
         try:
@@ -258,8 +272,9 @@ def build_rows(reg: Regressor, rec: Record, p, window, span, moments=None) -> Ro
         qdd = (qd[1:] - qd[:-1]) / h
         rows = acceleration_rows(reg, t[:-1] + h / 2, mid, qdd, u[:-1], p, w)
         if noisy and rec.qd is not None:
-            rows.noise = moments or acceleration_noise(reg, rec, t[:-1] + h / 2, mid, qdd,
-                                                       u[:-1], p, w)  # fmt: skip
+            rows.noise = moments or acceleration_noise(
+                reg, rec, t[:-1] + h / 2, mid, qdd, u[:-1], p, w
+            )
         return rows
     L = span or max(1, int(round(SPAN / h)))
     n_win = (len(t) - 1) // L
@@ -439,8 +454,11 @@ def check_time_base(reg: Regressor, rec: Record, p, theta) -> None:
     h = rec.h
     w = max(2 * int(round(WINDOW / h / 2)) + 1, POLYORDER + 2 + (POLYORDER % 2))
     w = min(w, (len(rec.t) - 2) // 2 * 2 + 1)  # a record shorter than the window: all of it
-    qd = rec.qd if rec.qd is not None else savgol_filter(rec.q, w, POLYORDER, deriv=1,
-                                                         delta=h, axis=0)  # fmt: skip
+    qd = (
+        rec.qd
+        if rec.qd is not None
+        else savgol_filter(rec.q, w, POLYORDER, deriv=1, delta=h, axis=0)
+    )
     qdd = savgol_filter(qd, w, POLYORDER, deriv=1, delta=h, axis=0)
     X = np.hstack([rec.q, qd])
     with np.errstate(all="ignore"):
@@ -486,7 +504,7 @@ def rate_distortion(rec: Record, window: int | None) -> float:
     quintic = savgol_filter(rec.q, ref, 5, deriv=1, delta=h, axis=0)
     c_used = np.zeros(ref)
     pad = (ref - w) // 2
-    c_used[pad:pad + w] = savgol_coeffs(w, POLYORDER, deriv=1)
+    c_used[pad : pad + w] = savgol_coeffs(w, POLYORDER, deriv=1)
     noise = rec.sigma_q * np.sqrt(np.sum((c_used - savgol_coeffs(ref, 5, deriv=1)) ** 2)) / h
     change = np.sqrt(np.maximum(np.mean((used - quintic) ** 2, 0) - noise**2, 0.0))
     scale = np.sqrt(np.mean(quintic**2, 0))

@@ -129,8 +129,10 @@ def _rate(model: Model, joint: str, text) -> tuple:
         sign, number, name = m.groups()
         if name not in coords:
             hint = did_you_mean(name, coords)
-            raise ValueError(f"friction[{joint!r}]: {model.name} has no coordinate {name!r}."
-                             f"{hint} Known: {', '.join(coords)}.")  # fmt: skip
+            raise ValueError(
+                f"friction[{joint!r}]: {model.name} has no coordinate {name!r}."
+                f"{hint} Known: {', '.join(coords)}."
+            )
         out[name] = out.get(name, 0.0) + (-1.0 if sign == "-" else 1.0) * float(number or 1)
     if not any(out.values()):
         raise ValueError(f"friction[{joint!r}]: the rate {text!r} is zero.")
@@ -159,8 +161,10 @@ def friction_setting(model: Model, friction) -> dict[str, tuple]:
             kind, rate = value  # already in this form
         elif isinstance(value, (tuple, list)) and len(value) == 2:
             if str(name) in coords:
-                raise ValueError(f"friction[{name!r}]: a joint with its own rate needs a name "
-                                 "that is not a coordinate's.")  # fmt: skip
+                raise ValueError(
+                    f"friction[{name!r}]: a joint with its own rate needs a name "
+                    "that is not a coordinate's."
+                )
             kind, rate = value[1], _rate(model, str(name), value[0])
         else:
             if name not in coords:
@@ -204,8 +208,12 @@ def _add_friction(model: Model, setting: dict, width: float) -> Model:
     params = dict(spec.parameters)
     by_name = {str(q.name): q for q in spec.coordinates}
     for joint, (kind, rate_terms) in setting.items():
-        rate = sp.Add(*[sp.Float(c) * by_name[q].diff(t) if c != 1 else by_name[q].diff(t)
-                        for q, c in rate_terms])  # fmt: skip
+        rate = sp.Add(
+            *[
+                sp.Float(c) * by_name[q].diff(t) if c != 1 else by_name[q].diff(t)
+                for q, c in rate_terms
+            ]
+        )
         b_name, c_name = friction_names(joint)
         tau = sp.S.Zero
         if "viscous" in kind:
@@ -275,8 +283,10 @@ def forms(model: Model, unknown: list[str]) -> Forms:
     theta = [by_name[name] for name in unknown]
     n = len(spec.coordinates)
     q, qd, qdd = code.x[:n], code.x[n:], code.z[:n]
-    e = [compact(sp.Add(*[code.mass[i, j] * qdd[j] for j in range(n)]) - code.forcing[i])
-         for i in range(n)]  # fmt: skip
+    e = [
+        compact(sp.Add(*[code.mass[i, j] * qdd[j] for j in range(n)]) - code.forcing[i])
+        for i in range(n)
+    ]
     momenta = [compact(diff(code.kinetic, v)) for v in qd]
     T_ = sp.Symbol("t")
     g = [
@@ -331,12 +341,16 @@ def _source(model: Model, f: Forms, key: str) -> str:
     n, k = len(model.coordinates), len(f.linear)
     m = code.constraint_matrix.shape[0]
     flat = {
-        "Y": [e for row in f.Y for e in row], "y0": f.y0,
-        "P": [e for row in f.P for e in row], "p0": f.p0,
-        "G": [e for row in f.G for e in row], "g0": f.g0,
-        "B": list(code.constraint_matrix), "b": list(code.constraint_bias),
+        "Y": [e for row in f.Y for e in row],
+        "y0": f.y0,
+        "P": [e for row in f.P for e in row],
+        "p0": f.p0,
+        "G": [e for row in f.G for e in row],
+        "g0": f.g0,
+        "B": list(code.constraint_matrix),
+        "b": list(code.constraint_bias),
         "gamma": list(code.constraint_accel),
-    }  # fmt: skip
+    }
     prog = Program(flat, prefix="c")
     res = prog.results
     head = [f"p{j} = p[{j}]" for j in range(len(code.p))]
@@ -352,20 +366,35 @@ def _source(model: Model, f: Forms, key: str) -> str:
         f"NONLINEAR = {f.nonlinear!r}",
         f"N_C = {m}",
         _kernel(
-            "acceleration_rows", "T, X, QDD, U, p, Y, y0",
-            {"Y": ((n, k), res["Y"]), "y0": ((n,), res["y0"])}, prog, head, x_row + u_row + a_row,
+            "acceleration_rows",
+            "T, X, QDD, U, p, Y, y0",
+            {"Y": ((n, k), res["Y"]), "y0": ((n,), res["y0"])},
+            prog,
+            head,
+            x_row + u_row + a_row,
         ),
         _kernel(
-            "momentum_rows", "T, X, U, p, P, P0, G, G0",
-            {"P": ((n, k), res["P"]), "P0": ((n,), res["p0"]), "G": ((n, k), res["G"]),
-             "G0": ((n,), res["g0"])}, prog, head, x_row + u_row,
+            "momentum_rows",
+            "T, X, U, p, P, P0, G, G0",
+            {
+                "P": ((n, k), res["P"]),
+                "P0": ((n,), res["p0"]),
+                "G": ((n, k), res["G"]),
+                "G0": ((n,), res["g0"]),
+            },
+            prog,
+            head,
+            x_row + u_row,
         ),
         _kernel(
-            "constraint_rows", "T, X, p, B, bias, gamma",
+            "constraint_rows",
+            "T, X, p, B, bias, gamma",
             {"B": ((m, n), res["B"]), "bias": ((m,), res["b"]), "gamma": ((m,), res["gamma"])},
-            prog, head, x_row,
+            prog,
+            head,
+            x_row,
         ),
-    ]  # fmt: skip
+    ]
     return "\n".join(parts) + "\n"
 
 

@@ -41,11 +41,32 @@ SIGNATURES = {
 }
 """The argument types every model's kernel is called with here and in `dynamics.rows`
 (see codegen and kernels)."""
-(DERIVATIVE, DERIVATIVE_P, DERIVATIVE_W, PROJECT, ENERGY, RESIDUAL, ACCELERATIONS, POWER,
- OUTPUTS) = (f"({calls.text(s)})" for s in SIGNATURES.values())  # fmt: skip
+(
+    DERIVATIVE,
+    DERIVATIVE_P,
+    DERIVATIVE_W,
+    PROJECT,
+    ENERGY,
+    RESIDUAL,
+    ACCELERATIONS,
+    POWER,
+    OUTPUTS,
+) = (f"({calls.text(s)})" for s in SIGNATURES.values())
 """The labels of those calls (the kernels return nothing)."""
-(AT_DERIVATIVE, AT_DERIVATIVE_P, AT_DERIVATIVE_W, AT_PROJECT, AT_ENERGY, AT_RESIDUAL,
- AT_ACCELERATIONS, AT_POWER, AT_OUTPUTS, N_Q, N_C, K) = range(len(SIGNATURES) + 3)  # fmt: skip
+(
+    AT_DERIVATIVE,
+    AT_DERIVATIVE_P,
+    AT_DERIVATIVE_W,
+    AT_PROJECT,
+    AT_ENERGY,
+    AT_RESIDUAL,
+    AT_ACCELERATIONS,
+    AT_POWER,
+    AT_OUTPUTS,
+    N_Q,
+    N_C,
+    K,
+) = range(len(SIGNATURES) + 3)
 """Where a model's table holds the addresses of its kernels, then its sizes."""
 TABLE_SIZE = K + 1
 
@@ -87,8 +108,9 @@ def _fill(module, t: np.ndarray, filled: set, name: str) -> None:
 def lane_kernels(per_row: bool, pushed: bool) -> tuple[str, ...]:
     """The derivative `erk_rows` calls for rows with their own parameters or pushes;
     `erk_row` always calls `derivative_lanes`."""
-    return ("derivative_lanes_w" if pushed else "derivative_lanes_p" if per_row
-            else "derivative_lanes",)  # fmt: skip
+    return (
+        "derivative_lanes_w" if pushed else "derivative_lanes_p" if per_row else "derivative_lanes",
+    )
 
 
 @njit(cache=True, error_model="numpy")
@@ -276,5 +298,20 @@ def erk_batch_parallel(T, X, U, p, P, h, substeps, a, w, c, out, block, model):
     numba's threads (numba.set_num_threads): bit for bit the same result."""
     n = X.shape[0]
     for j in prange((n + block - 1) // block):
-        erk_rows(T, X, U, p, P, None, h, substeps, a, w, c, out, j * block,
-                 min(n, (j + 1) * block), model)  # fmt: skip
+        erk_rows(
+            T,
+            X,
+            U,
+            p,
+            P,
+            None,
+            h,
+            substeps,
+            a,
+            w,
+            c,
+            out,
+            j * block,
+            min(n, (j + 1) * block),
+            model,
+        )

@@ -207,9 +207,20 @@ class System:
         return out.reshape(lead + (self.state_size,))
 
     def step_unchecked(
-        self, T, X, U, dt: float, substeps: int, out: np.ndarray, method: str = "rk4",
-        num_threads: int = 1, *, P=None, W=None, alone_below: int = stepping.LANES_FROM,
-    ) -> None:  # fmt: skip
+        self,
+        T,
+        X,
+        U,
+        dt: float,
+        substeps: int,
+        out: np.ndarray,
+        method: str = "rk4",
+        num_threads: int = 1,
+        *,
+        P=None,
+        W=None,
+        alone_below: int = stepping.LANES_FROM,
+    ) -> None:
         """`step` on contiguous float64 rows T (N,), X (N, 2n), U (N, n_u) into `out`,
         without argument checks: the environments' hot path. P: the parameter values, one
         vector for every row (len(parameters),) or each row's own (N, len(parameters)),
@@ -230,8 +241,7 @@ class System:
             numba.set_num_threads(min(num_threads, numba.config.NUMBA_NUM_THREADS))
             name = "derivative_lanes" if rows_p is None else "derivative_lanes_p"
             model = stepping.table(self._m, name)
-            stepping.erk_batch_parallel(T, X, U, p, rows_p, h, substeps, a, w, c, out, BLOCK,
-                                        model)  # fmt: skip
+            stepping.erk_batch_parallel(T, X, U, p, rows_p, h, substeps, a, w, c, out, BLOCK, model)
         else:
             self._blocks(T, X, U, p, rows_p, W, h, substeps, a, w, c, out, alone_below)
 
@@ -245,13 +255,15 @@ class System:
         if n < alone_below and W is None:  # so few rows: one at a time, as erk_rows would
             model = stepping.table(self._m, "derivative_lanes")
             for r in range(n):
-                stepping.erk_row(T, X, U, p if P is None else P[r], h, substeps, a, w, c, out,
-                                 r, model)  # fmt: skip
+                stepping.erk_row(
+                    T, X, U, p if P is None else P[r], h, substeps, a, w, c, out, r, model
+                )
             return
         model = stepping.table(self._m, *stepping.lane_kernels(P is not None, W is not None))
         for lo in range(0, n, BLOCK):  # one call for an env's rows
-            stepping.erk_rows(T, X, U, p, P, W, h, substeps, a, w, c, out, lo,
-                              min(n, lo + BLOCK), model)  # fmt: skip
+            stepping.erk_rows(
+                T, X, U, p, P, W, h, substeps, a, w, c, out, lo, min(n, lo + BLOCK), model
+            )
 
     def point_forces(self, x, point: str, force, t=0.0) -> np.ndarray:
         """The generalised forces (..., n_q) of `force` (..., 2 or 3 components, in the basis
@@ -291,9 +303,13 @@ class System:
         signs, the model's conditions and its bodies' inertia (`dynamics.physical`)."""
         m = self._m
         p = check_parameters(
-            self.name, m.PARAMETERS, m.DEFAULTS if base is None else base, m.POSITIVE, given,
+            self.name,
+            m.PARAMETERS,
+            m.DEFAULTS if base is None else base,
+            m.POSITIVE,
+            given,
             getattr(m, "NONNEGATIVE", ()),
-        )  # fmt: skip
+        )
         broken = physical.problems(m, p)
         if broken:
             shown = given or dict(zip(m.PARAMETERS, p.tolist()))

@@ -98,6 +98,7 @@ def __getattr__(name: str):
         raise AttributeError(_moved(name))
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+
 __all__ = [
     "ENV_IDS",
     "Angle",

@@ -11,8 +11,22 @@ from __future__ import annotations
 
 import numpy as np
 
-FLOATS = ("X", "X_next", "U", "T", "G", "A", "obs64", "terms", "R", "rows_x", "Y",
-          "steps_left", "E", "C")  # fmt: skip
+FLOATS = (
+    "X",
+    "X_next",
+    "U",
+    "T",
+    "G",
+    "A",
+    "obs64",
+    "terms",
+    "R",
+    "rows_x",
+    "Y",
+    "steps_left",
+    "E",
+    "C",
+)
 """The float64 arrays, in their order in `F`."""
 
 BOOLS = ("terminated", "success", "diverged", "failed")

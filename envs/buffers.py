@@ -93,9 +93,16 @@ def matrix(typingctx, buffer, offset, rows, cols):
         item = context.get_constant(
             numba_types.intp, context.get_abi_sizeof(context.get_data_type(buffer.dtype))
         )
-        return _view(context, builder, buffer, args[0], result,
-                     lambda flat: builder.gep(flat.data, [start]), [m, k],
-                     [builder.mul(k, item), item])  # fmt: skip
+        return _view(
+            context,
+            builder,
+            buffer,
+            args[0],
+            result,
+            lambda flat: builder.gep(flat.data, [start]),
+            [m, k],
+            [builder.mul(k, item), item],
+        )
 
     return result(buffer, offset, rows, cols), codegen
 
@@ -113,8 +120,15 @@ def column(typingctx, rows, k):
         k = context.cast(builder, args[1], signature.args[1], numba_types.intp)
         shape = cgutils.unpack_tuple(builder, table.shape, 2)
         strides = cgutils.unpack_tuple(builder, table.strides, 2)
-        return _view(context, builder, rows, args[0], result,
-                     lambda array: builder.gep(array.data, [k]), [shape[0]],
-                     [strides[0]])  # fmt: skip
+        return _view(
+            context,
+            builder,
+            rows,
+            args[0],
+            result,
+            lambda array: builder.gep(array.data, [k]),
+            [shape[0]],
+            [strides[0]],
+        )
 
     return result(rows, k), codegen

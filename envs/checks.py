@@ -381,6 +381,15 @@ def trial_run(plant, functions) -> None:
         check_region(plant, *functions["failure"])
 
 
-__all__ = ["DeclarationError", "Unsupported", "check_equilibrium", "check_with_model",
-           "checked_rows", "declaration_error", "positive_float", "positive_int", "real_array",
-           "trial_run"]  # fmt: skip
+__all__ = [
+    "DeclarationError",
+    "Unsupported",
+    "check_equilibrium",
+    "check_with_model",
+    "checked_rows",
+    "declaration_error",
+    "positive_float",
+    "positive_int",
+    "real_array",
+    "trial_run",
+]

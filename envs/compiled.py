@@ -153,12 +153,16 @@ def compile_functions(plant, arrays, task_params):
     jitted = {f"_{r}": compile_task_function(fn, sample) for r, (_, fn) in functions.items()}
     callers = {r: names.caller(_entry(jitted[f"_{r}"], sample), *types) for r in functions}
     term_calls = [callers[r] for r in functions if r.startswith("term_")]
-    return types, {
-        "reward": lambda x, a, g, p: [f(x, a, g, p) for f in term_calls],
-        "success": callers["success"],
-        "failure": callers.get("failure"),
-        "derived": [(col, callers[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)],
-    }, jitted
+    return (
+        types,
+        {
+            "reward": lambda x, a, g, p: [f(x, a, g, p) for f in term_calls],
+            "success": callers["success"],
+            "failure": callers.get("failure"),
+            "derived": [(col, callers[f"derived_{k}"]) for k, (col, _) in enumerate(plant.derived)],
+        },
+        jitted,
+    )
 
 
 def actions_type():

@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 
 from .checks import checked_rows, positive_float, positive_int, real_array
-from .step import wait_for_background
 from .plant import Plant
 from .runtime import Runtime
+from .step import wait_for_background
 from .task import Task
 
 GOALS_REMEMBERED = 4096

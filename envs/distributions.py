@@ -276,5 +276,14 @@ def distribution(value, name: str = "") -> Distribution:
     return Uniform(lo, hi)
 
 
-__all__ = ["APPLY", "DISTRIBUTIONS", "WHEN", "Choice", "LogUniform", "Same", "TruncNormal",
-           "Uniform", "distribution"]  # fmt: skip
+__all__ = [
+    "APPLY",
+    "DISTRIBUTIONS",
+    "WHEN",
+    "Choice",
+    "LogUniform",
+    "Same",
+    "TruncNormal",
+    "Uniform",
+    "distribution",
+]

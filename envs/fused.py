@@ -268,8 +268,10 @@ def _integrate_lines(plan: dict) -> list[str]:
             f"        {_invoke(plan, 'integrator', args)}",
         ]
     forces = "W" if plan.get("pushed") else "None"
-    args = (f"T, X, U, one_params, row_params, {forces}, h, substeps, ta, tw, tc, X_next, lo, "
-            "min(n, lo + block), model_kernels")  # fmt: skip
+    args = (
+        f"T, X, U, one_params, row_params, {forces}, h, substeps, ta, tw, tc, X_next, lo, "
+        "min(n, lo + block), model_kernels"
+    )
     return [
         "    for lo in range(0, n, block):  # the integrator's erk_rows, a block at a time",
         f"        {_invoke(plan, 'integrator', args)}",
@@ -302,8 +304,9 @@ def _task_lines(plan: dict) -> list[str]:
     """The generated step's calls of the task's functions, which read their inputs by name
     (envs.names): observation, reward terms, success and failure."""
     lines = [f"    # named inputs: {', '.join(plan['types'])}"]
-    for var, cls, src, width in zip(("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"),
-                                    ("x", "A", "G"), plan["widths"]):  # fmt: skip
+    for var, cls, src, width in zip(
+        ("xs", "as_", "gs"), ("_Rows", "_Actions", "_Goal"), ("x", "A", "G"), plan["widths"]
+    ):
         cols = ", ".join(f"column({src}, {i})" for i in range(width))
         lines.append(f"    {var} = {cls}({cols})")
     lines.append(f"    {_invoke(plan, '_observe')}")

@@ -184,10 +184,13 @@ def start_values(plant, out, rng) -> tuple[np.ndarray, np.ndarray, bool]:
             f"Known: {', '.join(plant.goal_names) or 'none'}."
         )
     values = {identifier(str(k)): v for k, v in given.items()}
-    g = np.array([
-        values[identifier(k)] if identifier(k) in values else rng.uniform(lo, hi)
-        for k, lo, hi in zip(plant.goal_names, plant.goal_low, plant.goal_high)
-    ], dtype=np.float64)  # fmt: skip
+    g = np.array(
+        [
+            values[identifier(k)] if identifier(k) in values else rng.uniform(lo, hi)
+            for k, lo, hi in zip(plant.goal_names, plant.goal_low, plant.goal_high)
+        ],
+        dtype=np.float64,
+    )
     return x, g, True
 
 

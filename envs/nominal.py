@@ -32,8 +32,17 @@ def constant_inputs(plant) -> np.ndarray:
     return out
 
 
-_RESOLVED = ("input_low", "input_high", "limits", "goal_low", "goal_high", "obs_low", "obs_high",
-             "term_low", "term_high")  # fmt: skip
+_RESOLVED = (
+    "input_low",
+    "input_high",
+    "limits",
+    "goal_low",
+    "goal_high",
+    "obs_low",
+    "obs_high",
+    "term_low",
+    "term_high",
+)
 
 
 def _moved(plant, other) -> set[str]:
@@ -71,8 +80,7 @@ def warn(plant, at) -> bool:
         changed[name] = set()
         group = [name] + [k for k, f in spec.dists.items() if getattr(f, "parameter", 0) == name]
         for end in d.ends():  # the parameter and those drawn Same as it, at an end
-            other = at({k: spec.dists[k].value(end, spec.nominal[spec.columns[k]])
-                                for k in group})  # fmt: skip
+            other = at({k: spec.dists[k].value(end, spec.nominal[spec.columns[k]]) for k in group})
             changed[name] |= _moved(plant, other)
             changed[name] |= {
                 f"constant {k!r}"
@@ -115,8 +123,11 @@ def _functions_reading(plant, other) -> tuple[set[str], bool]:
     fns = [(t.name, t.fn) for t in task.terms]
     fns += [("success", task.success), ("failure", task.failure)]
     fns += [(f.name, f.fn) for f in task.observation if hasattr(f, "fn")]
-    types = (record_type("Rows", plant.row_names), record_type("Actions", task.actuated),
-             record_type("Goal", plant.goal_names))  # fmt: skip
+    types = (
+        record_type("Rows", plant.row_names),
+        record_type("Actions", task.actuated),
+        record_type("Goal", plant.goal_names),
+    )
     mixed = record_rows(plant.p, len(x))
     odd = np.arange(len(x)) % 2 == 1
     mixed[odd] = other

@@ -35,6 +35,7 @@ from .task import Angle, AngleError, Derived, Task, Value, resolve
 def read_only(record) -> None:
     """Make the arrays of the frozen dataclass `record` (and those inside its tuples)
     read-only, so that nobody writes what a frozen record holds."""
+
     def freeze(value):
         if isinstance(value, np.ndarray):
             value.flags.writeable = False
@@ -212,13 +213,21 @@ class _Compiler:
                 self.angles_x,
                 self.values_x,
                 [n + i for i in range(n) if n + i not in observed],
-            ),  # fmt: skip
+            ),
             goal_map=(self.angles_g, self.values_g, fixed, missing),
         )
 
 
-def compile_observation(task: Task, n_q: int, row_names, goal_names, p, limits, goal_range,
-                        context: tuple[Context, ...] = ()) -> Observation:  # fmt: skip
+def compile_observation(
+    task: Task,
+    n_q: int,
+    row_names,
+    goal_names,
+    p,
+    limits,
+    goal_range,
+    context: tuple[Context, ...] = (),
+) -> Observation:
     """The observation of `task`'s features, then the `context` features: `row_names`
     the columns of x, `p` the record the declared numbers resolve at, `limits` the
     state's bounds (a `Value` without a bound takes its limit), `goal_range` (low, high)."""

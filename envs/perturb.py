@@ -236,9 +236,11 @@ class Perturber:
         # each record: action noise, observation noise, a push's direction and its start
         self._cols = {}
         width = 0
-        for name, size in (("action", n_a if spec.action_noise is not None else 0),
-                           ("obs", plant.obs_size if spec.obs_noise is not None else 0),
-                           ("direction", self.dims)):  # fmt: skip
+        for name, size in (
+            ("action", n_a if spec.action_noise is not None else 0),
+            ("obs", plant.obs_size if spec.obs_noise is not None else 0),
+            ("direction", self.dims),
+        ):
             self._cols[name] = slice(width, width + size)
             width += size
         self.width = width
@@ -288,12 +290,29 @@ class Perturber:
         if self.cursor.max() >= BUFFER:
             self._fill(self._all)
         spec, plant, push = self.spec, self.plant, self.spec.push
-        _step(actions, plant.input_mid, plant.input_half, self.low, self.high, self.queue,
-              self.head, self.k, self.u_prev, self.action_std, self.normal, self.uniform,
-              self.cursor, self._cols["action"].start, self._cols["direction"].start,
-              self.chance, 0.0 if push is None else push.force,
-              0 if push is None else push.periods, self.force, self.left,
-              self.applied)  # fmt: skip
+        _step(
+            actions,
+            plant.input_mid,
+            plant.input_half,
+            self.low,
+            self.high,
+            self.queue,
+            self.head,
+            self.k,
+            self.u_prev,
+            self.action_std,
+            self.normal,
+            self.uniform,
+            self.cursor,
+            self._cols["action"].start,
+            self._cols["direction"].start,
+            self.chance,
+            0.0 if push is None else push.force,
+            0 if push is None else push.periods,
+            self.force,
+            self.left,
+            self.applied,
+        )
         if spec.delay:
             self.head = (self.head + 1) % spec.delay
         if push is not None:
@@ -311,13 +330,43 @@ class Perturber:
             self.cursor[rows] += 1
         if self.spec.obs_noise is None:
             return
-        _observe(obs64, O, rows, self.spec.obs_noise, self.normal, self.cursor,
-                 self._cols["obs"].start, self.plant.obs_low, self.plant.obs_high)  # fmt: skip
+        _observe(
+            obs64,
+            O,
+            rows,
+            self.spec.obs_noise,
+            self.normal,
+            self.cursor,
+            self._cols["obs"].start,
+            self.plant.obs_low,
+            self.plant.obs_high,
+        )
 
 
 @njit(cache=True)
-def _step(actions, mid, half, low, high, queue, head, k, u_prev, std, normal, uniform, cursor,
-          a0, d0, chance, size, periods, force, left, applied) -> None:  # fmt: skip
+def _step(
+    actions,
+    mid,
+    half,
+    low,
+    high,
+    queue,
+    head,
+    k,
+    u_prev,
+    std,
+    normal,
+    uniform,
+    cursor,
+    a0,
+    d0,
+    chance,
+    size,
+    periods,
+    force,
+    left,
+    applied,
+) -> None:
     """Each row's next record (at cursor, then advanced); its commanded inputs (the clipped
     actions as inputs) through the delay line (the oldest out at `head`, the new one in),
     the motor response (k = 1: none), the noise std (none if empty) and the limits into

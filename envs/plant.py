@@ -98,11 +98,26 @@ class Plant:
         if declared is not False and declared is not None:
             spec = Randomization.declare(system, declared)
         context = observed(spec, opts.get("observe_params"))
-        obs = compile_observation(task, system.n_q, parts["row_names"], parts["goal_names"], p,
-                                  parts["limits"], (parts["goal_low"], parts["goal_high"]),
-                                  context)  # fmt: skip
-        plant = cls(task=task, system=system, p=p, options=opts, observation=obs,
-                    randomize=spec, **parts, **stepping(task, opts))  # fmt: skip
+        obs = compile_observation(
+            task,
+            system.n_q,
+            parts["row_names"],
+            parts["goal_names"],
+            p,
+            parts["limits"],
+            (parts["goal_low"], parts["goal_high"]),
+            context,
+        )
+        plant = cls(
+            task=task,
+            system=system,
+            p=p,
+            options=opts,
+            observation=obs,
+            randomize=spec,
+            **parts,
+            **stepping(task, opts),
+        )
         checks.check_with_model(plant)
         facts = {"perturb": Perturbations.parse(opts.get("perturb"), plant)}
         if spec is not None:  # the supports compared here, where plants are built
@@ -299,8 +314,9 @@ class Plant:
         """ValueError unless every goal component lies in its declared range."""
         starts.check_goal(self, g)
 
-    def start_rows(self, rngs, options: dict | None, rows: list[int], batch: int | None,
-                   params=None):  # fmt: skip
+    def start_rows(
+        self, rngs, options: dict | None, rows: list[int], batch: int | None, params=None
+    ):
         """Starting states and goals of `rows` (see `envs.starts.start_rows`)."""
         return starts.start_rows(self, rngs, options, rows, batch, params)
 
@@ -323,8 +339,7 @@ def _declared(task: Task, system, p, max_input) -> dict:
                 f"{', '.join(system.inputs) or 'none'}."
             )
     actuated = np.array([system.inputs.index(k) for k in task.actuated], dtype=np.int64)
-    low, high = input_limits(task.max_input if max_input is None else max_input, p,
-                             len(actuated))  # fmt: skip
+    low, high = input_limits(task.max_input if max_input is None else max_input, p, len(actuated))
     limits = np.full(2 * system.n_q, np.inf)
     for name, bound in task.limits.items():
         limits[index_of(task, names, name, "limits")] = resolve(bound, p)
@@ -344,7 +359,7 @@ def _declared(task: Task, system, p, max_input) -> dict:
         "row_names": row_names,
         "output_index": np.array(
             [system.output_names.index(k) for k in task.outputs], dtype=np.int64
-        ),  # fmt: skip
+        ),
         "actuated": actuated,
         "input_low": low,
         "input_high": high,

@@ -61,11 +61,18 @@ def axes(dists: dict, columns: dict, nominal: np.ndarray) -> list:
     for name, d in dists.items():
         if isinstance(d, Same):
             continue
-        cols = [columns[name]] + [columns[k] for k, f in dists.items() if
-                                  isinstance(f, Same) and f.parameter == name]  # fmt: skip
+        cols = [columns[name]] + [
+            columns[k] for k, f in dists.items() if isinstance(f, Same) and f.parameter == name
+        ]
         lo, hi = d.ends()
-        axes.append((name, cols, [d.value(lo, nominal[c]) for c in cols],
-                     [d.value(hi, nominal[c]) for c in cols]))  # fmt: skip
+        axes.append(
+            (
+                name,
+                cols,
+                [d.value(lo, nominal[c]) for c in cols],
+                [d.value(hi, nominal[c]) for c in cols],
+            )
+        )
     return axes
 
 

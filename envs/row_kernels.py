@@ -55,8 +55,21 @@ def advance(X, X_next, limits, diverged, T, dt, steps, horizon, steps_left) -> b
 
 
 @njit(cache=True)
-def finish(terms, low, high, failed, diverged, steps_left, lowest, rewards, terminated,
-           success, obs, obs_low, obs32) -> bool:  # fmt: skip
+def finish(
+    terms,
+    low,
+    high,
+    failed,
+    diverged,
+    steps_left,
+    lowest,
+    rewards,
+    terminated,
+    success,
+    obs,
+    obs_low,
+    obs32,
+) -> bool:
     """Clip each reward term into its bounds and sum them; a row terminates when it failed
     or diverged, and then adds the early-end penalty steps_left * min(0, lowest) and is no
     success; the observation is handed out as float32. A NaN or inf reward term or

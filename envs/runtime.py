@@ -38,8 +38,7 @@ from .perturb import Perturber
 from .plant import Plant
 from .step import NonFiniteActions, Step, wait_for_background
 
-ARRAYS = ("X", "U", "T", "G", "A", "O", "terms", "R", "steps", "terminated", "success",
-          "diverged")  # fmt: skip
+ARRAYS = ("X", "U", "T", "G", "A", "O", "terms", "R", "steps", "terminated", "success", "diverged")
 """The arrays of `RowArrays` the runtime shows wrappers as its own attributes (the same
 views, never rebound)."""
 
@@ -57,9 +56,22 @@ class Runtime:
         self.substeps = plant.substeps
         self.integrator = plant.integrator
         self.num_threads = plant.num_threads
-        widths = (s.state_size, s.state_size, s.n_u, None, len(plant.goal_names),
-                  len(plant.actuated), plant.obs_size, len(plant.task.terms), None,
-                  len(plant.row_names), len(s.output_names), None, 2, s.n_c)  # fmt: skip
+        widths = (
+            s.state_size,
+            s.state_size,
+            s.n_u,
+            None,
+            len(plant.goal_names),
+            len(plant.actuated),
+            plant.obs_size,
+            len(plant.task.terms),
+            None,
+            len(plant.row_names),
+            len(s.output_names),
+            None,
+            2,
+            s.n_c,
+        )
         # every per-row array is a view of one of a few flat buffers (envs.arrays), so that
         # the fused step takes them in a few arguments
         self.arrays = RowArrays(n, widths, plant.obs_size)
@@ -83,8 +95,7 @@ class Runtime:
         """The step and the diagnostics' kernel on the arrays (again after unpickling)."""
         for name in ARRAYS:
             setattr(self, name, getattr(self.arrays, name))
-        self.stepper = Step(self.plant, self.arrays, self.parameters, self.perturber,
-                            self._pushed)  # fmt: skip
+        self.stepper = Step(self.plant, self.arrays, self.parameters, self.perturber, self._pushed)
         self._term_names = [t.name for t in self.plant.task.terms]
         module = self.system.kernel_module
         # the model's kernels' addresses, for the energy and the constraints' residual in
@@ -130,8 +141,9 @@ class Runtime:
         return self.parameters.values(row)
 
     # ---- episodes --------------------------------------------------------------------------
-    def start(self, rngs, options: dict | None, rows: list[int], batch: int | None,
-              seeded: bool = False):  # fmt: skip
+    def start(
+        self, rngs, options: dict | None, rows: list[int], batch: int | None, seeded: bool = False
+    ):
         """(states, goals, (parameters, pins) or None) that `rows` start an episode with,
         changing nothing: the parameters first (`ParameterRows.draw`, from each row's
         generator `rngs[i]`; once-only draws again where `seeded`), then the starting
@@ -199,8 +211,9 @@ class Runtime:
             if not np.isfinite(actions).all():
                 raise NonFiniteActions("actions contain NaN or inf")
             perturbed = self.perturber.before_step(actions, self.T, self.X, model_params)
-        diverged = self.stepper.step(actions, model_params, store.task_params,
-                                     -1 if horizon is None else horizon, perturbed)  # fmt: skip
+        diverged = self.stepper.step(
+            actions, model_params, store.task_params, -1 if horizon is None else horizon, perturbed
+        )
         if perturbed:
             self.perturber.observe(self.arrays.obs64, self.O)
         return diverged

@@ -100,8 +100,7 @@ def _given(plant, options: dict, rows, batch):
     return x_given, g_given
 
 
-def start_rows(plant, rngs, options: dict | None, rows: list[int], batch: int | None,
-               params=None):  # fmt: skip
+def start_rows(plant, rngs, options: dict | None, rows: list[int], batch: int | None, params=None):
     """Starting states and goals of `rows`: options['state'] / options['goal'] where
     given, else drawn from the task's start distribution with each row's generator.
     Options are checked before any generator draws. Constrained models' states are
@@ -123,10 +122,12 @@ def start_rows(plant, rngs, options: dict | None, rows: list[int], batch: int | 
     x = x if x_given is None else x_given
     g = g if g_given is None else g_given
     if system.n_c and params is not None:  # onto each row's own constraints
-        x = np.array([
-            system.with_parameters(**dict(zip(system.parameters, row))).project(xi)
-            for xi, row in zip(x, params)
-        ]).reshape(x.shape)  # fmt: skip
+        x = np.array(
+            [
+                system.with_parameters(**dict(zip(system.parameters, row))).project(xi)
+                for xi, row in zip(x, params)
+            ]
+        ).reshape(x.shape)
     elif system.n_c:
         x = system.project(x)
     return x, g

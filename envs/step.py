@@ -72,13 +72,28 @@ class Step:
         self.lowest = float(plant.lowest_reward)
         # the kernels on the rows' own arrays (bound after a call on copies, which
         # compiles or loads them for exactly these types)
-        self._observe = warm(observe, a.rows_x, a.G, plant.ops, plant.obs_low,
-                             plant.obs_high, a.obs64)  # fmt: skip
-        self._advance = warm(advance, a.X, a.X_next, plant.limits, a.diverged, a.T, 0.0,
-                             a.steps, -1, a.steps_left)  # fmt: skip
-        self._finish = warm(finish, a.terms, plant.term_low, plant.term_high, a.failed,
-                            a.diverged, a.steps_left, self.lowest, a.R, a.terminated,
-                            a.success, a.obs64, plant.obs_low, a.O)  # fmt: skip
+        self._observe = warm(
+            observe, a.rows_x, a.G, plant.ops, plant.obs_low, plant.obs_high, a.obs64
+        )
+        self._advance = warm(
+            advance, a.X, a.X_next, plant.limits, a.diverged, a.T, 0.0, a.steps, -1, a.steps_left
+        )
+        self._finish = warm(
+            finish,
+            a.terms,
+            plant.term_low,
+            plant.term_high,
+            a.failed,
+            a.diverged,
+            a.steps_left,
+            self.lowest,
+            a.R,
+            a.terminated,
+            a.success,
+            a.obs64,
+            plant.obs_low,
+            a.O,
+        )
         # fewer rows than the model's vector lanes step one at a time (`erk_row`, as
         # `erk_rows` would: the same operations), in the fused step and without it
         self.row_by_row = n < stepping.LANES_FROM and not pushed
@@ -105,24 +120,52 @@ class Step:
             fused_step = self._take(model_params, task_params)
         a = self.arrays
         if fused_step is not None:
-            code = fused_step(actions, a.F, a.B, a.steps, a.O, self.C, self.K, model_params,
-                              task_params, horizon, *perturbed)  # fmt: skip
+            code = fused_step(
+                actions,
+                a.F,
+                a.B,
+                a.steps,
+                a.O,
+                self.C,
+                self.K,
+                model_params,
+                task_params,
+                horizon,
+                *perturbed,
+            )
             if code < 0:
                 raise NonFiniteActions("actions contain NaN or inf")
             return code > 0
         plant = self.plant
-        if not apply_actions(actions, plant.input_mid, plant.input_half, plant.actuated, a.A,
-                             a.U):  # fmt: skip
+        if not apply_actions(actions, plant.input_mid, plant.input_half, plant.actuated, a.A, a.U):
             raise NonFiniteActions("actions contain NaN or inf")
         if perturbed:
             a.U[:, plant.actuated] = perturbed[0]
         alone = ONE_BY_ONE + 1 if self.one_by_one and self.bound is None else stepping.LANES_FROM
-        self.system.step_unchecked(a.T, a.X, a.U, plant.control_period, plant.substeps,
-                                   a.X_next, plant.integrator, plant.num_threads,
-                                   P=model_params, W=perturbed[1] if perturbed else None,
-                                   alone_below=alone)  # fmt: skip
-        diverged = self._advance(a.X, a.X_next, plant.limits, a.diverged, a.T,
-                                 plant.control_period, a.steps, horizon, a.steps_left)  # fmt: skip
+        self.system.step_unchecked(
+            a.T,
+            a.X,
+            a.U,
+            plant.control_period,
+            plant.substeps,
+            a.X_next,
+            plant.integrator,
+            plant.num_threads,
+            P=model_params,
+            W=perturbed[1] if perturbed else None,
+            alone_below=alone,
+        )
+        diverged = self._advance(
+            a.X,
+            a.X_next,
+            plant.limits,
+            a.diverged,
+            a.T,
+            plant.control_period,
+            a.steps,
+            horizon,
+            a.steps_left,
+        )
         bad = self.evaluate(model_params, task_params)
         return bool(diverged) or bool(bad)
 
@@ -141,9 +184,21 @@ class Step:
         a.success[:] = self.success(x, a.A, a.G, p)
         if self.failure is not None:
             a.failed[:] = self.failure(x, a.A, a.G, p)
-        return self._finish(a.terms, plant.term_low, plant.term_high, a.failed, a.diverged,
-                            a.steps_left, self.lowest, a.R, a.terminated, a.success,
-                            a.obs64, plant.obs_low, a.O)  # fmt: skip
+        return self._finish(
+            a.terms,
+            plant.term_low,
+            plant.term_high,
+            a.failed,
+            a.diverged,
+            a.steps_left,
+            self.lowest,
+            a.R,
+            a.terminated,
+            a.success,
+            a.obs64,
+            plant.obs_low,
+            a.O,
+        )
 
     def rows(self, model_params) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs
@@ -190,16 +245,31 @@ class Step:
         floats = list(self.arrays.segments())
         bools = [(name, k) for k, name in enumerate(BOOLS)]
         h = plant.control_period / plant.substeps
-        real = [("input_mid", plant.input_mid), ("input_half", plant.input_half),
-                ("limits", plant.limits), ("obs_low", plant.obs_low),
-                ("obs_high", plant.obs_high), ("term_low", plant.term_low),
-                ("term_high", plant.term_high), ("ta", ta), ("tw", tw), ("tc", tc), ("h", h),
-                ("dt", plant.control_period), ("lowest", self.lowest)]  # fmt: skip
+        real = [
+            ("input_mid", plant.input_mid),
+            ("input_half", plant.input_half),
+            ("limits", plant.limits),
+            ("obs_low", plant.obs_low),
+            ("obs_high", plant.obs_high),
+            ("term_low", plant.term_low),
+            ("term_high", plant.term_high),
+            ("ta", ta),
+            ("tw", tw),
+            ("tc", tc),
+            ("h", h),
+            ("dt", plant.control_period),
+            ("lowest", self.lowest),
+        ]
         roles = ["integrator", *functions]
-        whole = [("actuated", plant.actuated), ("ops", plant.ops),
-                 ("output_index", plant.output_index), ("substeps", plant.substeps),
-                 ("block", BLOCK), ("addresses", np.zeros(len(roles))),
-                 ("model_kernels", np.zeros(stepping.TABLE_SIZE))]  # fmt: skip
+        whole = [
+            ("actuated", plant.actuated),
+            ("ops", plant.ops),
+            ("output_index", plant.output_index),
+            ("substeps", plant.substeps),
+            ("block", BLOCK),
+            ("addresses", np.zeros(len(roles))),
+            ("model_kernels", np.zeros(stepping.TABLE_SIZE)),
+        ]
         # addresses: of the kernels the step calls; model_kernels: the model's table, which
         # the integrator reads (dynamics.stepping); both written by `_install` (dynamics.calls)
         real_constants, C = pack(real, np.float64)
@@ -225,13 +295,19 @@ class Step:
             "row_by_row": self.row_by_row,  # erk_row, one row at a time; else erk_rows
         }
         at = next(start for name, start, *_ in whole_constants if name == "addresses")
-        self.table_slot = next(start for name, start, *_ in whole_constants
-                               if name == "model_kernels")  # fmt: skip
+        self.table_slot = next(
+            start for name, start, *_ in whole_constants if name == "model_kernels"
+        )
         kinds = self._variable_types(plan, store)
         self.calls = [(at, *self._integrator(kinds))]
         for role in functions:
-            self.calls.append((at + len(self.calls), functions[role],
-                               tuple(kinds[v] for v in fused.arguments(role))))  # fmt: skip
+            self.calls.append(
+                (
+                    at + len(self.calls),
+                    functions[role],
+                    tuple(kinds[v] for v in fused.arguments(role)),
+                )
+            )
         plan["calls"] = {
             role: (slot - at, calls.label(kernel, types))
             for role, (slot, kernel, types) in zip(roles, self.calls)
@@ -247,10 +323,13 @@ class Step:
 
         f8, i8, a = types.float64, types.int64, self.arrays
         kinds = {
-            "actions": actions_type(), "steps": typeof(a.steps), "O": typeof(a.O),
+            "actions": actions_type(),
+            "steps": typeof(a.steps),
+            "O": typeof(a.O),
             "model_params": typeof(store.model_params),
-            "task_params": typeof(store.task_params), "horizon": i8,
-        }  # fmt: skip
+            "task_params": typeof(store.task_params),
+            "horizon": i8,
+        }
         for name, _, width in plan["floats"]:
             kinds[fused.RENAMED.get(name, name)] = types.Array(f8, 1 if width is None else 2, "C")
         for name, _ in plan["bools"]:
@@ -341,8 +420,9 @@ class Step:
         if self._separate_steps <= SEPARATE_FIRST:
             return None
         self._compiling = future = Future()
-        thread = threading.Thread(target=self._background, name="fused step",
-                                  args=(future, model_params, task_params))  # fmt: skip
+        thread = threading.Thread(
+            target=self._background, name="fused step", args=(future, model_params, task_params)
+        )
         _COMPILING.add(thread)
         thread.start()
         return None

@@ -112,18 +112,32 @@ TASK = envs.Task(
     ),
     success=success,
     failure=failure,
-    start={**{n: (-0.05, 0.05) for n in ("x1", "x2", "x3")},
-           **{n: (-0.1, 0.1) for n in ("x1_dot", "x2_dot", "x3_dot")}},  # fmt: skip
+    start={
+        **{n: (-0.05, 0.05) for n in ("x1", "x2", "x3")},
+        **{n: (-0.1, 0.1) for n in ("x1_dot", "x2_dot", "x3_dot")},
+    },  # fmt: skip
     limits={"x1": 0.5, "x2": 0.5, "x3": 0.5, "x1_dot": 5.0, "x2_dot": 5.0, "x3_dot": 5.0},
     operating_point={},
     control_period=0.05,
     substeps=4,
     max_episode_steps=200,
     lqr=envs.LQRHints(
-        scales={"x1": 0.005, "x2": 0.005, "x3": 0.005,
-                "x1_dot": 0.02, "x2_dot": 0.02, "x3_dot": 0.02},  # fmt: skip
-        region={"x1": 0.05, "x2": 0.05, "x3": 0.05,
-                "x1_dot": 0.1, "x2_dot": 0.1, "x3_dot": 0.1},  # fmt: skip
+        scales={
+            "x1": 0.005,
+            "x2": 0.005,
+            "x3": 0.005,
+            "x1_dot": 0.02,
+            "x2_dot": 0.02,
+            "x3_dot": 0.02,
+        },  # fmt: skip
+        region={
+            "x1": 0.05,
+            "x2": 0.05,
+            "x3": 0.05,
+            "x1_dot": 0.1,
+            "x2_dot": 0.1,
+            "x3_dot": 0.1,
+        },  # fmt: skip
     ),
 )
 envs.register(ID, TASK)

@@ -52,7 +52,13 @@ def objective(env_id: str, timesteps: int, out: Path, seed: int, episodes: int):
         (run_dir.parent / f"trial{trial.number}.yml").write_text(yaml.safe_dump({env_id: hp}))
         trial.set_user_attr("worker", os.getpid())
         result = train(
-            env_id, "ppo", timesteps, seed, run_dir=run_dir, progress=False, overwrite=True,
+            env_id,
+            "ppo",
+            timesteps,
+            seed,
+            run_dir=run_dir,
+            progress=False,
+            overwrite=True,
             hyperparams=run_dir.parent / f"trial{trial.number}.yml",
         )
         stats = evaluate(env_id, str(result.run_dir), episodes=episodes, seed=1000)
@@ -74,7 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("runs/optuna"))
     args = parser.parse_args(argv)
     study = optuna.create_study(
-        study_name=args.study, storage=storage_of(args.storage), direction="maximize",
+        study_name=args.study,
+        storage=storage_of(args.storage),
+        direction="maximize",
         load_if_exists=True,
     )
     run = objective(args.env_id, args.timesteps, args.out / args.study, args.seed, args.episodes)

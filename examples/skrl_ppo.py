@@ -34,20 +34,33 @@ def build(env_id: str, n_envs: int, timesteps: int, out: Path, seed: int = 0):
 
     set_seed(seed)
     vec = gym.make_vec(
-        env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+        env_id,
+        num_envs=n_envs,
+        vectorization_mode="vector_entry_point",
         autoreset_mode=AutoresetMode.SAME_STEP,
     )
     env = wrap_env(vec, wrapper="gymnasium")
     spaces = {"observation_space": env.observation_space, "action_space": env.action_space}
     net = [{"name": "net", "input": "OBSERVATIONS", "layers": [64, 64], "activations": "tanh"}]
     models = {
-        "policy": gaussian_model(**spaces, device=env.device, clip_actions=True, network=net,
-                                 output="ACTIONS", initial_log_std=-0.5),
+        "policy": gaussian_model(
+            **spaces,
+            device=env.device,
+            clip_actions=True,
+            network=net,
+            output="ACTIONS",
+            initial_log_std=-0.5,
+        ),
         "value": deterministic_model(**spaces, device=env.device, network=net, output="ONE"),
     }
     rollouts = 128
-    cfg = PPO_CFG(rollouts=rollouts, learning_epochs=5, mini_batches=4, discount_factor=0.98,
-                  learning_rate=3e-4)
+    cfg = PPO_CFG(
+        rollouts=rollouts,
+        learning_epochs=5,
+        mini_batches=4,
+        discount_factor=0.98,
+        learning_rate=3e-4,
+    )
     cfg.experiment.directory = str(out)
     cfg.experiment.write_interval = rollouts
     cfg.experiment.checkpoint_interval = timesteps

@@ -107,7 +107,8 @@ window.addEventListener("load", () => {
   ready.then(() => new Promise(r => setTimeout(r, 50))).then(() => {
     const found = {errors: window.__siteCheck.errors, source: [], shrunk: [], cut: [], broken: [],
                    requests: []};
-    const skip = ["CODE", "PRE", "SCRIPT", "STYLE", "MJX-CONTAINER", "MJX-ASSISTIVE-MML", "TEXTAREA"];
+    const skip = ["CODE", "PRE", "SCRIPT", "STYLE", "MJX-CONTAINER", "MJX-ASSISTIVE-MML",
+                  "TEXTAREA"];
     const tex = /\$[^$\n]*\\[A-Za-z]+[^$\n]*\$|\\\(|\\\[/;
     const text = document.querySelector("article") || document.body;
     const walker = document.createTreeWalker(text, NodeFilter.SHOW_TEXT);

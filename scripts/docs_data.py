@@ -66,7 +66,7 @@ def staleness(commit: str | None, date: str | None) -> str:
     else:
         measured = "at an unrecorded date"
     return (
-        f"!!! warning \"Older than the code\"\n    Measured {measured}; `envs/`, `dynamics/` "
+        f'!!! warning "Older than the code"\n    Measured {measured}; `envs/`, `dynamics/` '
         f"or `agents/` changed since (last at commit {last[:10]}, {when[:10]}): rerun its "
         f"command to refresh it.\n"
     )
@@ -93,8 +93,7 @@ def learning_section() -> str:
     if not LEARNING.exists():
         return (
             "No learning results file (`docs/data/learning.json`) yet; the figures of past "
-            "rounds are in the [results log](results-log.md). To measure and publish:\n\n"
-            + refresh
+            "rounds are in the [results log](results-log.md). To measure and publish:\n\n" + refresh
         )
     data = json.loads(LEARNING.read_text(encoding="utf-8"))
     sys.path.insert(0, str(ROOT))

@@ -579,9 +579,9 @@ def _derived_text(name: str) -> str:
 
 
 def model_meta(name: str) -> dict:
-    """A model's coordinates, inputs, parameter units and docs and its description, cached on disk like its
-    derived text: building a spec runs its factory's sympy (seconds for the bicycle), which
-    a warm build should not repeat."""
+    """A model's coordinates, inputs, parameter units and docs and its description, cached on
+    disk like its derived text: building a spec runs its factory's sympy (seconds for the
+    bicycle), which a warm build should not repeat."""
     import sympy
 
     parts = (model(name).key, sympy.__version__, inspect.getsource(_model_meta))

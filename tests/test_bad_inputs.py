@@ -818,8 +818,12 @@ def _with_region(**region):
 OWN_SYSTEM = {
     "a reward term's misspelt state": (
         lambda: _with_term(_term_typo),
-        ["term 'speed'", "x has no name 'x_dott'", "Did you mean 'x_dot'?",
-         "x's names: x, theta, x_dot, theta_dot"],
+        [
+            "term 'speed'",
+            "x has no name 'x_dott'",
+            "Did you mean 'x_dot'?",
+            "x's names: x, theta, x_dot, theta_dot",
+        ],
     ),  # fmt: skip
     "a reward term's misspelt parameter": (
         lambda: _with_term(_term_param_typo),

@@ -64,9 +64,7 @@ def handover_options(raw) -> dict | None:
 def check_handover(raw) -> dict:
     """The `handover` table with its defaults; ValueError saying what it must be."""
     if not isinstance(raw, dict) or set(raw) - set(HANDOVER_KEYS) or "level" not in raw:
-        raise ValueError(
-            f"a table with 'level' (and optionally {', '.join(HANDOVER_KEYS[1:])})"
-        )
+        raise ValueError(f"a table with 'level' (and optionally {', '.join(HANDOVER_KEYS[1:])})")
     numbers = all(
         isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
         for v in raw.values()

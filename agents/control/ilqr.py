@@ -355,9 +355,17 @@ def plan(
     goal_here = x0.copy()
     goal_here[problem.periodic] = X[-1, problem.periodic] - problem.error(X[-1])[problem.periodic]
     result = Plan(
-        t=dt * np.arange(steps + 1), x=X, actions=A, goal=goal_here, dt=dt, gains=K,
-        cost=J, terminal_error=err, iterations=iterations, seconds=seconds,
-    )  # fmt: skip
+        t=dt * np.arange(steps + 1),
+        x=X,
+        actions=A,
+        goal=goal_here,
+        dt=dt,
+        gains=K,
+        cost=J,
+        terminal_error=err,
+        iterations=iterations,
+        seconds=seconds,
+    )
     if strict and err > float(opts["goal_tolerance"]):
         raise PlanError(
             f"The plan of {opts['horizon']} s ends {err:.3g} (largest state component) from "

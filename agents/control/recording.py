@@ -87,8 +87,11 @@ def record(
 def _excite(env, env_id: str, seconds: float, fraction: float, seed: int, feedback):
     """(record, mode): open loop, then half the excitation, then under LQR (or `feedback`
     alone), until one lasts `seconds`; else the longest if it lasts MIN_SECONDS."""
-    tries = [(feedback, fraction)] if feedback else [
-        ("none", fraction), ("none", fraction / 2), ("lqr", fraction)]  # fmt: skip
+    tries = (
+        [(feedback, fraction)]
+        if feedback
+        else [("none", fraction), ("none", fraction / 2), ("lqr", fraction)]
+    )
     best, mode = None, None
     for how, share in tries:
         rec = _run(env, seconds, share, seed, how)

@@ -62,9 +62,14 @@ def tvlqr(env, p: Plan, u0, lqr: LQRPolicy | None = None) -> Tracker:
     P = _embed(d.P, d.linear.index, n)
     S = action_matrix(env)
     A, B = step_jacobians(
-        env.system, p.x[:-1], p.actions @ S.T, p.dt, env.substeps, float(p.t[0]),
+        env.system,
+        p.x[:-1],
+        p.actions @ S.T,
+        p.dt,
+        env.substeps,
+        float(p.t[0]),
         env_tableau(env),
-    )  # fmt: skip
+    )
     B = B @ S
     K = np.zeros((p.steps,) + (S.shape[1], n))
     for k in range(p.steps - 1, -1, -1):

@@ -39,8 +39,9 @@ def needed(episodes: int | None = None, rate: float | None = None) -> int:
     return int(np.ceil((RATE if rate is None else rate) * episodes - 1e-9))
 
 
-def promise(episodes: int | None = None, rate: float | None = None, fresh: int = 20,
-            tries: int = 10) -> dict:  # fmt: skip
+def promise(
+    episodes: int | None = None, rate: float | None = None, fresh: int = 20, tries: int = 10
+) -> dict:
     """The numbers of the module docstring: Wilson's lower bound at the least confirmed
     rate, the chance that an agent of that true rate scores below 80 % on `fresh` episodes,
     and the worst case over true rates of being confirmed and then scoring below 80 %

@@ -82,8 +82,14 @@ def success_edges(env_id: str, seed: int = 0) -> Edges:
                 if len(out):
                     d = reward[0] - r[sign][out[0]]
                     drop[i] = d if np.isnan(drop[i]) else min(drop[i], d)
-    return Edges(tuple(names), edge, drop, reward_span(task, env_id),
-                 episode_steps(env_id, task), bool(success[0]))  # fmt: skip
+    return Edges(
+        tuple(names),
+        edge,
+        drop,
+        reward_span(task, env_id),
+        episode_steps(env_id, task),
+        bool(success[0]),
+    )
 
 
 def flat_components(edges: Edges, rates: bool = False) -> list[str]:
@@ -93,7 +99,9 @@ def flat_components(edges: Edges, rates: bool = False) -> list[str]:
     return [
         name
         for name, e, d in zip(edges.names, edges.edge, edges.reward_drop)
-        if np.isfinite(e) and np.isfinite(d) and abs(d) < limit
+        if np.isfinite(e)
+        and np.isfinite(d)
+        and abs(d) < limit
         and (rates or not name.endswith("_dot"))
     ]
 
@@ -109,9 +117,7 @@ def flat_reward_warning(env_id: str, shaped: bool = True) -> str | None:
     flat = flat_components(edges)
     if not flat:
         return None
-    parts = [
-        f"{n} (edge {edges.edge[edges.names.index(n)]:.3g})" for n in flat
-    ]
+    parts = [f"{n} (edge {edges.edge[edges.names.index(n)]:.3g})" for n in flat]
     return (
         f"{env_id}: the reward is flat inside the tolerance of the success set along "
         f"{', '.join(parts)}: one step just outside the set pays less than {FLAT:g} of a "
@@ -126,4 +132,3 @@ def flat_reward_warning(env_id: str, shaped: bool = True) -> str | None:
             "a term that grows towards the goal, or ask for shaping ({lqr: 0.5, success: 0.1})."
         )
     )
-

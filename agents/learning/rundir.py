@@ -52,7 +52,6 @@ def default_run_dir(env_id: str, algo: str, seed: int) -> Path:
     return Path("runs") / "train" / env_slug(env_id) / f"{algo}_seed{seed}"
 
 
-
 def run_dir_of(out: Path, env_id: str, algo: str, seed: int, budget: int, tag: str = "") -> Path:
     """`agents.check`'s run directory: each budget trains in a directory of its own, so
     asking for another budget starts a fresh run and keeps the earlier one (asked for
@@ -207,7 +206,6 @@ def _check_same_run(run_dir: Path, env_id: str, algo: str) -> None:
             f"{run_dir} holds a {earlier['algo']} run on {earlier['env_id']}, "
             f"not {algo} on {env_id}; resume it with those, or choose another --run-dir."
         )
-
 
 
 def latest_checkpoint(directory: Path) -> tuple[int, Path] | None:

@@ -115,9 +115,13 @@ class TaskRewardVecEnv(VecEnvWrapper):
     module docstring)."""
 
     def __init__(
-        self, venv: VecEnv, scale: float = 1.0, potential=None, gamma: float = 0.99,
+        self,
+        venv: VecEnv,
+        scale: float = 1.0,
+        potential=None,
+        gamma: float = 0.99,
         bonus: float = 0.0,
-    ):  # fmt: skip
+    ):
         super().__init__(venv)
         self.scale, self.potential, self.gamma = float(scale), potential, float(gamma)
         self.bonus = float(bonus)

@@ -81,11 +81,15 @@ class SolvedStop(BaseCallback):
         score = (1.0, record["rate"], mean) if record is not None else (0.0, rate, mean)
         self._offer(score, force=candidate)
         if candidate:
-            rule = (f">= {self.rate:.0%} success at {self.times} evaluations in a row of "
-                    f"{len(successes)} episodes")  # fmt: skip
+            rule = (
+                f">= {self.rate:.0%} success at {self.times} evaluations in a row of "
+                f"{len(successes)} episodes"
+            )
             if record is not None:
-                rule += (f", then >= {record['needed']} of {record['episodes']} fresh "
-                         "episodes (agents.learning.confirm)")  # fmt: skip
+                rule += (
+                    f", then >= {record['needed']} of {record['episodes']} fresh "
+                    "episodes (agents.learning.confirm)"
+                )
             self.solved = {
                 "seconds": round(self.clock.elapsed(), 2),
                 "timesteps": int(self.num_timesteps),
@@ -113,9 +117,12 @@ class SolvedStop(BaseCallback):
         (best / "config.yml.tmp").replace(best / "config.yml")
         with atomic_path(best / "model.zip") as tmp:
             self.model.save(tmp)
-        record = {"timesteps": int(self.num_timesteps), "success_rate": self.best[1],
-                  "mean_return": self.best[2],
-                  "measured_on": "confirmation" if self.best[0] else "evaluation"}  # fmt: skip
+        record = {
+            "timesteps": int(self.num_timesteps),
+            "success_rate": self.best[1],
+            "mean_return": self.best[2],
+            "measured_on": "confirmation" if self.best[0] else "evaluation",
+        }
         write_atomic(best / "best.json", json.dumps(record, indent=1) + "\n")
 
 

@@ -223,4 +223,3 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
         train_env = VecNormalize(train_env, **norm)
         eval_env = VecNormalize(eval_env, **{**norm, "training": False, "norm_reward": False})
     return train_env, eval_env
-

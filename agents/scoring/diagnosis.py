@@ -36,8 +36,9 @@ class Ends:
     within: dict = dataclasses.field(default_factory=dict)  # component -> share inside its edge
 
 
-def rollout_ends(make_agent, env_id: str, agent, episodes: int, seed: int, edges: Edges,
-                 name: str) -> Ends:  # fmt: skip
+def rollout_ends(
+    make_agent, env_id: str, agent, episodes: int, seed: int, edges: Edges, name: str
+) -> Ends:
     """Run `agent` (a name or a path, built by `make_agent(name, venv, seed)`, as
     agents.evaluate's) from seeds seed.. and collect where its episodes end, in units of
     the success edges."""
@@ -86,26 +87,41 @@ def _ends(name, stats, trail, dx, edges: Edges, share) -> Ends:
     outside = {n: int((err[:, i] > 1).sum()) for i, n in enumerate(edges.names)}
     # the success set's conditions, one per component it bounds (a finite edge): the
     # share of episodes whose last state lies within the edge along it
-    within = {n: float(np.mean(err[:, i] <= 1)) for i, n in enumerate(edges.names)
-              if np.isfinite(scale[i]) and len(err)}  # fmt: skip
+    within = {
+        n: float(np.mean(err[:, i] <= 1))
+        for i, n in enumerate(edges.names)
+        if np.isfinite(scale[i]) and len(err)
+    }
     tail = trail[:, -max(trail.shape[1] // 5, 2) :]
     path = np.nansum(np.abs(np.diff(tail, axis=1)), axis=1)  # per component, last fifth
     moved = np.max(np.where(np.isfinite(scale), path / scale, 0.0), axis=1)
     ended_late = ~np.asarray(stats.terminated, bool) & ~np.asarray(stats.successes, bool)
     still = int((ended_late & (moved < 0.1) & (distance > 1) & (distance <= 3)).sum())
-    return Ends(name, stats.endings(), distance, {k: v for k, v in outside.items() if v},
-                still, share, within)  # fmt: skip
+    return Ends(
+        name,
+        stats.endings(),
+        distance,
+        {k: v for k, v in outside.items() if v},
+        still,
+        share,
+        within,
+    )
 
 
 def describe_ends(ends: Ends) -> str:
     """One line: how the episodes ended and where."""
     parts = [", ".join(f"{n} {k}" for k, n in ends.endings.items() if n)]
     if len(ends.distance):
-        parts.append(f"last state {np.median(ends.distance):.2g} success edges from the "
-                     "operating point (median; < 1 is inside along every component)")  # fmt: skip
+        parts.append(
+            f"last state {np.median(ends.distance):.2g} success edges from the "
+            "operating point (median; < 1 is inside along every component)"
+        )
     if ends.within:
-        parts.append("at the last step within the success edge along " + ", ".join(
-            f"{k} in {v:.0%}" for k, v in ends.within.items()) + " of the episodes")  # fmt: skip
+        parts.append(
+            "at the last step within the success edge along "
+            + ", ".join(f"{k} in {v:.0%}" for k, v in ends.within.items())
+            + " of the episodes"
+        )
     if ends.outside:
         parts.append("outside along " + ", ".join(f"{k} ({v})" for k, v in ends.outside.items()))
     if ends.still_outside:
@@ -115,8 +131,15 @@ def describe_ends(ends: Ends) -> str:
     return f"{ends.agent}: " + "; ".join(parts)
 
 
-def diagnose(make_agent, env_id: str, agent, episodes: int = 20, seed: int = 0,
-             compare: tuple[str, ...] = ("lqr",), name: str = "trained") -> list[str]:  # fmt: skip
+def diagnose(
+    make_agent,
+    env_id: str,
+    agent,
+    episodes: int = 20,
+    seed: int = 0,
+    compare: tuple[str, ...] = ("lqr",),
+    name: str = "trained",
+) -> list[str]:
     """Lines saying where `agent`'s episodes ended, beside the agents in `compare` (LQR,
     the plan) from the same starts; an agent that cannot run here (LQR on a time-varying
     system) is left out with its reason. make_agent: agents.evaluate.make_agent."""
@@ -150,25 +173,35 @@ def advice(ends: Ends, others: dict, flat: list[str], edges: Edges) -> list[str]
     positions = [k for k in missed if not k.endswith("_dot")]
     out = []
     if ends.endings.get("failure", 0) + ends.endings.get("diverged", 0) > n / 2:
-        out.append("most episodes end early (failure or divergence): a longer budget "
-                   "(--budget 20m), or starts nearer the goal while it learns")  # fmt: skip
+        out.append(
+            "most episodes end early (failure or divergence): a longer budget "
+            "(--budget 20m), or starts nearer the goal while it learns"
+        )
     if rates and not positions:
-        out.append(f"the agent reaches the goal but does not come to rest ({', '.join(rates)} "
-                   "outside the tolerance): a reward term on those rates that costs a "
-                   "visible share of a step's range at the tolerance, e.g. -w (rate / "
-                   "tolerance)^2 with w a tenth of the range; a longer budget")  # fmt: skip
+        out.append(
+            f"the agent reaches the goal but does not come to rest ({', '.join(rates)} "
+            "outside the tolerance): a reward term on those rates that costs a "
+            "visible share of a step's range at the tolerance, e.g. -w (rate / "
+            "tolerance)^2 with w a tenth of the range; a longer budget"
+        )
     elif positions:
         near = [k for k in positions if k in flat]
-        what = (f"the reward is flat there along {', '.join(near)}: a term that grows "
-                "towards the goal at the scale of the success edge (e.g. -|error| / edge)"
-                if near else "a longer budget (--budget 20m), or another learner "
-                "(--algo sac, tqc or crossq)")  # fmt: skip
-        out.append(f"the agent ends outside the set along {', '.join(positions)}"
-                   + (f" ({ends.still_outside} held still just outside)"
-                      if ends.still_outside else "") + f": {what}")  # fmt: skip
+        what = (
+            f"the reward is flat there along {', '.join(near)}: a term that grows "
+            "towards the goal at the scale of the success edge (e.g. -|error| / edge)"
+            if near
+            else "a longer budget (--budget 20m), or another learner (--algo sac, tqc or crossq)"
+        )
+        out.append(
+            f"the agent ends outside the set along {', '.join(positions)}"
+            + (f" ({ends.still_outside} held still just outside)" if ends.still_outside else "")
+            + f": {what}"
+        )
     good = [a for a, e in others.items() if e.endings.get("success", 0) >= MISSED * n]
     if good:
-        out.append(f"{good[0]} succeeds from the same starts: where the agent brings the "
-                   "state near the goal, a declared LQR hand-over (hyperparams "
-                   "{ppo: {handover: ...}}, agents.control.handover) finishes the job")  # fmt: skip
+        out.append(
+            f"{good[0]} succeeds from the same starts: where the agent brings the "
+            "state near the goal, a declared LQR hand-over (hyperparams "
+            "{ppo: {handover: ...}}, agents.control.handover) finishes the job"
+        )
     return out

@@ -85,8 +85,9 @@ def run_episodes(venv, policy, obs, deterministic: bool = True) -> EvalStats:
     return EvalStats(returns, lengths, successes, ended_early, diverged & ended_early)
 
 
-def score(env_id: str, build, episodes: int, seed: int, deterministic: bool = True,
-          **options) -> EvalStats:  # fmt: skip
+def score(
+    env_id: str, build, episodes: int, seed: int, deterministic: bool = True, **options
+) -> EvalStats:
     """The evaluation every program reports: `episodes` copies of `env_id`'s native vector
     env (env `options` such as `randomize`), copy i reset with seed + i, the first episode
     of each under the policy `build(venv)` returns. agents.evaluate scores with it, and so

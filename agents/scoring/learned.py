@@ -56,8 +56,10 @@ def solved_note(run_dir: Path, seconds: float | None) -> str:
         if not candidates:
             return f"not solved in {seconds:g} s (best evaluation kept)"
         best = max(candidates, key=lambda c: c["rate"])
-        return (f"not solved in {seconds:g} s: {len(candidates)} candidates met the rule, "
-                f"none confirmed (the best {confirmed_text(best)}; kept)")  # fmt: skip
+        return (
+            f"not solved in {seconds:g} s: {len(candidates)} candidates met the rule, "
+            f"none confirmed (the best {confirmed_text(best)}; kept)"
+        )
     solved = json.loads(path.read_text())
     note = f"solved after {solved['seconds']:.0f} s, {solved['timesteps']:,} steps"
     if "confirmed" in solved:
@@ -69,8 +71,10 @@ def confirmed_text(record: dict) -> str:
     """'K of M fresh starts (R %, 95 % [L, H])' of a confirmation record."""
     low, high = record["wilson95"]
     rate = f"{100 * record['rate']:.0f} %"
-    return (f"{record['successes']} of {record['episodes']} fresh starts ({rate}, "
-            f"95 % [{100 * low:.0f}, {100 * high:.0f}])")  # fmt: skip
+    return (
+        f"{record['successes']} of {record['episodes']} fresh starts ({rate}, "
+        f"95 % [{100 * low:.0f}, {100 * high:.0f}])"
+    )
 
 
 def resumed_note(run_dir: Path) -> str:
@@ -115,8 +119,7 @@ def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
     alone = programs.evaluate(env_id, SB3Policy.load(model_path), episodes, seed)
     name = f"{algo} alone"
     log(f"  {name:>9}: {alone.summary()}")
-    note = (f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside "
-            "its set")  # fmt: skip
+    note = f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside its set"
     row = Row(env_id, name, alone, 0.0, "the trained agent without the LQR hand-over")
     return [row], note, share, inside
 

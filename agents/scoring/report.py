@@ -298,9 +298,12 @@ def plot_comparison(rows: list[Row], path: Path) -> None:
     n_agents = max(sum(r.env_id == e for r in rows) for e in env_ids)
     height = 0.5 + 0.32 * n_agents
     fig, axes = plt.subplots(
-        len(env_ids), 2, figsize=(11, 0.8 + height * len(env_ids)), squeeze=False,
+        len(env_ids),
+        2,
+        figsize=(11, 0.8 + height * len(env_ids)),
+        squeeze=False,
         gridspec_kw={"width_ratios": [1, 1.3]},
-    )  # fmt: skip
+    )
     for (ax_s, ax_r), env_id in zip(axes, env_ids):
         mine = [r for r in rows if r.env_id == env_id]
         _success_panel(ax_s, mine, colours)
@@ -312,8 +315,14 @@ def plot_comparison(rows: list[Row], path: Path) -> None:
     fig.suptitle(f"agents on every environment ({n} episodes each)")
     fig.tight_layout()
     handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in colours.values()]
-    fig.legend(handles, list(colours), loc="upper center", bbox_to_anchor=(0.5, 0.0),
-               ncol=len(colours), frameon=False)  # fmt: skip
+    fig.legend(
+        handles,
+        list(colours),
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=len(colours),
+        frameon=False,
+    )
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
@@ -324,13 +333,26 @@ def _success_panel(ax, mine: list[Row], colours: dict[str, str]) -> None:
     rates = np.array([r.stats.success_rate for r in mine])
     cis = [success_interval(r.stats) for r in mine]
     err = np.array([[p - c.low, c.high - p] for p, c in zip(rates, cis)]).T
-    ax.barh(y, rates, color=[colours[r.agent] for r in mine], xerr=err, capsize=3,
-            error_kw={"elinewidth": 1, "ecolor": "black", "alpha": 0.6})  # fmt: skip
+    ax.barh(
+        y,
+        rates,
+        color=[colours[r.agent] for r in mine],
+        xerr=err,
+        capsize=3,
+        error_kw={"elinewidth": 1, "ecolor": "black", "alpha": 0.6},
+    )
     for yi, rate, ci in zip(y, rates, cis):
         inside = rate > 0.3  # the value at the bar's start, clear of the interval's whisker
-        ax.text(0.02 if inside else ci.high + 0.02, yi, f"{rate:.0%}", va="center",
-                ha="left", fontsize=9, fontweight="bold",
-                color="white" if inside else "black")  # fmt: skip
+        ax.text(
+            0.02 if inside else ci.high + 0.02,
+            yi,
+            f"{rate:.0%}",
+            va="center",
+            ha="left",
+            fontsize=9,
+            fontweight="bold",
+            color="white" if inside else "black",
+        )
     ax.set_yticks(y, [r.agent for r in mine])
     ax.set_xlim(0, 1.15)
     ax.set_xticks([0, 0.25, 0.5, 0.75, 1.0], ["0", "25%", "50%", "75%", "100%"])
@@ -348,8 +370,14 @@ def _return_panel(ax, mine: list[Row], colours: dict[str, str]) -> None:
         if m < low or m > high:  # off the axis: an arrow at the edge, with the value
             edge, ha = (low, "left") if m < low else (high, "right")
             ax.plot(edge, yi, "<" if m < low else ">", color=colour, ms=9, clip_on=False)
-            ax.text(edge + (1 if m < low else -1) * 0.03 * (high - low), yi, f"{m:.1f}",
-                    va="center", ha=ha, fontsize=8)  # fmt: skip
+            ax.text(
+                edge + (1 if m < low else -1) * 0.03 * (high - low),
+                yi,
+                f"{m:.1f}",
+                va="center",
+                ha=ha,
+                fontsize=8,
+            )
             continue
         lo, hi = max(ci.low, low), min(ci.high, high)
         ax.plot([lo, hi], [yi, yi], color=colour, lw=2.5, solid_capstyle="butt")

@@ -53,9 +53,22 @@ def bicycle_points(q: Sequence[float], p) -> dict[str, np.ndarray]:
     shoulders = seat + B @ np.array([0.3, 0.0, -0.5])
     crank = R + B @ np.array([0.4, 0.0, -0.05])
     rider = R + B @ np.array([p.x_B, 0.0, p.z_B + p.r_R])
-    return dict(P=P, R=R, S=S, F=F, head_low=head_low, head_top=head_top, seat=seat,
-                crank=crank, rider=rider, shoulders=shoulders, B=B, H=H,
-                th_R=th_R, th_F=th_F)  # fmt: skip
+    return dict(
+        P=P,
+        R=R,
+        S=S,
+        F=F,
+        head_low=head_low,
+        head_top=head_top,
+        seat=seat,
+        crank=crank,
+        rider=rider,
+        shoulders=shoulders,
+        B=B,
+        H=H,
+        th_R=th_R,
+        th_F=th_F,
+    )
 
 
 def _up(v) -> np.ndarray:
@@ -96,8 +109,12 @@ def draw_bicycle(surface, x: Sequence[float], speed_goal: float, p, track=None) 
     gx, gy = round(pts["P"][0] / step) * step, round(pts["P"][1] / step) * step
     for k in range(-span, span + 1):
         for a, b in (((k, -span), (k, span)), ((-span, k), (span, k))):
-            cam.segment(surface, _up([gx + a[0] * step, gy + a[1] * step, 0.0]),
-                        _up([gx + b[0] * step, gy + b[1] * step, 0.0]), FLOOR)  # fmt: skip
+            cam.segment(
+                surface,
+                _up([gx + a[0] * step, gy + a[1] * step, 0.0]),
+                _up([gx + b[0] * step, gy + b[1] * step, 0.0]),
+                FLOOR,
+            )
     if track is not None and len(track) > 1:
         ground = [_up([tx, ty, 0.0]) for tx, ty in track]
         for a, b in zip(ground[:-1], ground[1:]):
@@ -110,8 +127,14 @@ def draw_bicycle(surface, x: Sequence[float], speed_goal: float, p, track=None) 
     _wheel(surface, cam, pts["R"], B[:, 0], B[:, 2], p.r_R, -pts["th_R"], JOINT)
     _wheel(surface, cam, pts["F"], H[:, 0], H[:, 2], p.r_F, -pts["th_F"], JOINT)
     px = lambda v: cam(_up(v))  # noqa: E731
-    for a, b in (("R", "crank"), ("R", "seat"), ("crank", "seat"), ("seat", "head_top"),
-                 ("crank", "head_low"), ("head_low", "head_top")):  # fmt: skip
+    for a, b in (
+        ("R", "crank"),
+        ("R", "seat"),
+        ("crank", "seat"),
+        ("seat", "head_top"),
+        ("crank", "head_low"),
+        ("head_low", "head_top"),
+    ):
         _bar(surface, px(pts[a]), px(pts[b]), 4, LINK)
     _bar(surface, px(pts["head_low"]), px(pts["F"]), 3, INK)  # the fork
     bar = 0.25 * H[:, 1]

@@ -235,8 +235,9 @@ def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
     from agents.scoring.learned import solved_note
 
     record = {"successes": 190, "episodes": 200, "rate": 0.95, "wilson95": [0.91, 0.97]}
-    (tmp_path / "confirmations.json").write_text(json.dumps([{**record, "successes": 176,
-                                                                "rate": 0.88}]))
+    (tmp_path / "confirmations.json").write_text(
+        json.dumps([{**record, "successes": 176, "rate": 0.88}])
+    )
     assert solved_note(tmp_path, 600) == (
         "not solved in 600 s: 1 candidates met the rule, none confirmed (the best 176 of "
         "200 fresh starts (88 %, 95 % [91, 97]); kept)"

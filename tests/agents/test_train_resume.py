@@ -208,9 +208,7 @@ def test_resume_refuses_a_checkpoint_without_its_replay_buffer(tmp_path):
     assert result.timesteps == 300 and result.model.replay_buffer.size() == 100
 
 
-def test_a_signal_during_an_evaluation_ends_it_at_the_next_step_and_saves(
-    tmp_path, monkeypatch
-):
+def test_a_signal_during_an_evaluation_ends_it_at_the_next_step_and_saves(tmp_path, monkeypatch):
     """SB3 looks at callbacks only between evaluations; the evaluation polls the stop."""
     calls = []
 

@@ -123,8 +123,15 @@ def test_appendix_a_reproduces_the_published_matrices(defaults):
         {"m_B": 60.0, "I_Bxx": 6.5, "I_Byy": 7.8, "I_Bzz": 2.0, "I_Bxz": 1.7},  # a lighter rider
         {"m_H": 7.0, "I_Hxz": 0.01, "I_Hzz": 0.02, "x_H": 0.85},  # a heavier, forward fork
         {"m_F": 1.2, "I_Fyy": 0.1, "I_Fxx": 0.05, "r_F": 0.33},  # a small light front wheel
-        {"c": 0.02, "lam": 0.3, "w": 1.2, "I_Ryy": 0.2, "I_Rxx": 0.11, "z_B": -1.1,
-         "I_Bxz": -0.5},  # fmt: skip
+        {
+            "c": 0.02,
+            "lam": 0.3,
+            "w": 1.2,
+            "I_Ryy": 0.2,
+            "I_Rxx": 0.11,
+            "z_B": -1.1,
+            "I_Bxz": -0.5,
+        },  # fmt: skip
     ],
 )
 def test_matrices_follow_parameters_as_appendix_a_predicts(defaults, changes):

@@ -28,8 +28,13 @@ def test_the_plant_is_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
         plant.observation = None
     # and so are the arrays it holds: nothing writes a limit, a bound or the record in place
-    for array in (plant.input_low, plant.limits, plant.goal_low, plant.observation.low,
-                  plant.observation.ops):
+    for array in (
+        plant.input_low,
+        plant.limits,
+        plant.goal_low,
+        plant.observation.low,
+        plant.observation.ops,
+    ):
         with pytest.raises(ValueError, match="read-only"):
             array[0] = 0
     with pytest.raises(ValueError, match="read-only"):

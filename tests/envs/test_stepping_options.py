@@ -32,7 +32,10 @@ def test_vector_env_is_bit_identical_on_one_thread_and_many(env_id):
 
 def test_integrator_option_and_task_default():
     env = gym.make("Lagrange/TwoLinkArm-v1").unwrapped
-    assert (env.integrator, env.substeps) == (envs.tasks.arm.TASK.integrator, envs.tasks.arm.TASK.substeps)
+    assert (env.integrator, env.substeps) == (
+        envs.tasks.arm.TASK.integrator,
+        envs.tasks.arm.TASK.substeps,
+    )
     env = gym.make("Lagrange/TwoLinkArm-v1", integrator="rk4", substeps=25).unwrapped
     assert env.integrator == "rk4"
     env.reset(seed=0)
