@@ -191,16 +191,7 @@ def identify(
         _refuse_unphysical(full, fit, values)
         fitted = _fitted(rows, rec, lin, b, fit)
     else:  # only unknowns that enter nonlinearly: simulation error alone
-        b = estimate.Base([], [], np.zeros((0, 0)))
-        fit = Fit(
-            dict(values),
-            {},
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(len(cat.coordinates)),
-            float("nan"),
-            [],
-        )
+        b, fit = estimate.Base([], [], np.zeros((0, 0))), _given_fit(values, len(cat.coordinates))
         fitted, refine = {}, True
     if refine is None:
         refine = bool(reg.nonlinear)
@@ -214,6 +205,11 @@ def identify(
     for text in out.warnings:
         warnings.warn(text, stacklevel=2)
     return out
+
+
+def _given_fit(values: dict, n: int) -> Fit:
+    """The start of a fit with no linear unknowns: the given values, nothing estimated."""
+    return Fit(dict(values), {}, np.zeros(0), np.zeros(0), np.zeros(n), float("nan"), [])
 
 
 def _determined_fit(rows, lin, b, values, full, spread: dict, held: dict) -> Fit:
@@ -441,6 +437,33 @@ def _fit(
             np.einsum("e,ek->k", w_eq**2, c[:, free]),
         )
 
+    R, z, gram, Aw, yw, w = _weighted(rows, A, y, noise, violated)
+    beta, cond = estimate.scaled_lstsq(R, z)
+
+    lower = _lower(full, lin, values)
+    unphysical = _unphysical(full, theta_of(beta), lower)
+    violated += unphysical
+    if unphysical:
+        lower_I = np.array([lower.get(lin[I[j]], -np.inf) for j in free]) + (K @ theta_D)[free]
+        beta = estimate.constrained_fit(R, z, beta, lower_I, _body_checks(full, theta_of))
+    cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
+    if fixed:  # d beta / d beta_held = -G^-1 Aw^T Aw_held, times the held ones' variance
+        S = np.linalg.pinv(gram) @ (Aw.T @ (A_I[:, fixed] * w[:, None]))
+        cov = cov + S @ np.diag([held[lin[I[j]]] for j in fixed]) @ S.T
+    beta_std = np.full(len(I), np.nan)
+    beta_std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    full_beta = prior.copy()
+    full_beta[free] = beta
+    theta = theta_of(beta)
+    std = {lin[I[j]]: float(beta_std[j]) for j in free}
+    r = rows.y - A_I @ full_beta
+    return Fit(theta, std, full_beta, beta_std, _residual_rms(rows, r), cond, violated)
+
+
+def _weighted(rows: regression.Rows, A, y, noise, violated: list[str]):
+    """The normal equations `(R, z, gram)` of `A beta = y` weighted per equation by the
+    inverse of its residual's spread, noise-compensated where `noise(w_eq)` allows (else
+    said in `violated`), and the weighted `Aw`, `yw` and the row weights `w`."""
     ones = np.ones(rows.n_eq)
     first = estimate.compensated(A, y, *noise(ones))
     compensate = rows.noise is not None
@@ -464,27 +487,7 @@ def _fit(
         weighted = first
     w = w_eq[rows.equation]
     Aw, yw = A * w[:, None], y * w
-    R, z, gram = weighted
-    beta, cond = estimate.scaled_lstsq(R, z)
-
-    lower = _lower(full, lin, values)
-    unphysical = _unphysical(full, theta_of(beta), lower)
-    violated += unphysical
-    if unphysical:
-        lower_I = np.array([lower.get(lin[I[j]], -np.inf) for j in free]) + (K @ theta_D)[free]
-        beta = estimate.constrained_fit(R, z, beta, lower_I, _body_checks(full, theta_of))
-    cov = estimate.hac_covariance(Aw, yw - Aw @ beta, rows.time, rows.lag, gram)
-    if fixed:  # d beta / d beta_held = -G^-1 Aw^T Aw_held, times the held ones' variance
-        S = np.linalg.pinv(gram) @ (Aw.T @ (A_I[:, fixed] * w[:, None]))
-        cov = cov + S @ np.diag([held[lin[I[j]]] for j in fixed]) @ S.T
-    beta_std = np.full(len(I), np.nan)
-    beta_std[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    full_beta = prior.copy()
-    full_beta[free] = beta
-    theta = theta_of(beta)
-    std = {lin[I[j]]: float(beta_std[j]) for j in free}
-    r = rows.y - A_I @ full_beta
-    return Fit(theta, std, full_beta, beta_std, _residual_rms(rows, r), cond, violated)
+    return (*weighted, Aw, yw, w)
 
 
 def _unphysical(full, theta: dict, lower: dict) -> list[str]:
