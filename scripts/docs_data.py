@@ -115,6 +115,36 @@ def learning_section() -> str:
     ])  # fmt: skip
 
 
+def precision_section() -> str:
+    """The precision examples' runs (docs/data/learning-precision-*.json, the newest), one
+    row a run: how long to the confirmed verdict, the confirmation, the check's 20."""
+    files = sorted(DATA.glob("learning-precision-*.json"))
+    if not files:
+        return "No precision runs file (`docs/data/learning-precision-DATE.json`) yet."
+    data = json.loads(files[-1].read_text(encoding="utf-8"))
+    lines = [
+        staleness(data.get("commit"), data.get("date")),
+        f"Measured {data['date']} at commit {data.get('commit')} "
+        f"({data['machine'].get('cores', '?')} cores; {data['machine'].get('note', '')}); "
+        f"each row's command is in `docs/data/{files[-1].name}`.",
+        "",
+        "| system | learner | seed | variant | budget | solved after | steps | confirmed "
+        "| check's 20 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in data["rows"]:
+        solved = r.get("solved")
+        seen = (solved or {}).get("confirmed") or {}
+        after = f"{solved['seconds']:.0f} s" if solved else "not solved"
+        conf = f"{seen['successes']} of {seen['episodes']}" if seen else ""
+        lines.append(
+            f"| {r['system']} | {r['learner']} | {r['seed']} | {r['variant']} "
+            f"| {r['budget_s']:.0f} s | {after} | {r['trained_steps']:,} | {conf} "
+            f"| {r['success_20']:.0%} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:
     """docs/data/learning.json from a learning benchmark's results.csv files."""
     sys.path.insert(0, str(ROOT))

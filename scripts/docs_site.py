@@ -821,7 +821,8 @@ def on_page_markdown(markdown, page, config, files):
     """The pages' rendered data (the learning benchmark's table, the main job's cost), the
     home page's environment gallery, from the registry, and the source's citation."""
     if page.file.src_uri == "learning.md":
-        return markdown.replace("<!-- data: learning -->", data().learning_section())
+        markdown = markdown.replace("<!-- data: learning -->", data().learning_section())
+        return markdown.replace("<!-- data: precision -->", data().precision_section())
     if page.file.src_uri != "index.md":
         return markdown
     markdown = markdown.replace("<!-- data: main job -->", main_job_cost())
