@@ -39,8 +39,11 @@ def test_a_changed_declaration_gets_another_fingerprint(tmp_path):
     assert before == task_fingerprint(FURUTA) and task_fingerprint("Pendulum-v1") is None
     task = gym.spec(FURUTA).kwargs["task"]
     changed = dataclasses.replace(task, max_episode_steps=499, name="FurutaChanged")
-    envs.register("Examples/FurutaChanged-v0", changed)
-    assert task_fingerprint("Examples/FurutaChanged-v0") != before
+    envs.register("Test/FurutaChanged-v0", changed)  # not Examples/: that list is checked
+    try:
+        assert task_fingerprint("Test/FurutaChanged-v0") != before
+    finally:
+        del gym.registry["Test/FurutaChanged-v0"]
     config = {"env_id": FURUTA, "algo": "ppo", "task": before}
     (tmp_path / "config.yml").write_text(yaml.safe_dump(config))
     check_fingerprint(tmp_path, FURUTA)  # the same declaration: reused
