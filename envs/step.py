@@ -78,8 +78,8 @@ class Step:
         self._advance = warm(
             advance, a.X, a.X_next, plant.limits, a.diverged, a.T, 0.0, a.steps, -1, a.steps_left
         )
-        self._finish = warm(
-            finish,
+        # the end of a step's arguments: the rows' buffers and the plant's bounds, fixed
+        self._finish_args = (
             a.terms,
             plant.term_low,
             plant.term_high,
@@ -94,6 +94,7 @@ class Step:
             plant.obs_low,
             a.O,
         )
+        self._finish = warm(finish, *self._finish_args)
         # fewer rows than the model's vector lanes step one at a time (`erk_row`, as
         # `erk_rows` would: the same operations), in the fused step and without it
         self.row_by_row = n < stepping.LANES_FROM and not pushed
@@ -184,21 +185,7 @@ class Step:
         a.success[:] = self.success(x, a.A, a.G, p)
         if self.failure is not None:
             a.failed[:] = self.failure(x, a.A, a.G, p)
-        return self._finish(
-            a.terms,
-            plant.term_low,
-            plant.term_high,
-            a.failed,
-            a.diverged,
-            a.steps_left,
-            self.lowest,
-            a.R,
-            a.terminated,
-            a.success,
-            a.obs64,
-            plant.obs_low,
-            a.O,
-        )
+        return self._finish(*self._finish_args)
 
     def rows(self, model_params) -> np.ndarray:
         """The rows the task functions see: the state, then the declared model outputs
