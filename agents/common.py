@@ -8,6 +8,7 @@ that reject bad budgets with a clear message.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import math
 import os
@@ -232,3 +233,38 @@ def trained_line(algo: str, env_id: str, result) -> str:
         f"{algo} on {env_id}: {result.timesteps} steps in {result.wall_s:.0f} s, "
         f"{evaluation}.{when} Model: {result.model_path}"
     )
+
+
+_APPLIED: dict[str, dict[str, float]] = {}  # env id -> the values `applied` set
+
+
+@contextlib.contextmanager
+def applied(env_id: str, values: dict[str, float] | None):
+    """Within the block, `spec(env_id)` (what the agents make their envs from) carries
+    `values`; Gymnasium's registry is never written. None: nothing to do."""
+    if not values:
+        yield
+        return
+    _APPLIED[env_id] = dict(values)
+    try:
+        yield
+    finally:
+        _APPLIED.pop(env_id, None)
+
+
+def spec(env_id: str):
+    """What the agents pass to `gym.make` / `gym.make_vec` for `env_id`: the id itself, or
+    within `applied` a copy of its registration with the values among its keyword
+    arguments (`gym.make(id, **values)` would give the same env)."""
+    values = _APPLIED.get(env_id)
+    if not values:
+        return env_id
+    import dataclasses
+
+    registered = gym.spec(env_id)
+    return dataclasses.replace(registered, kwargs={**registered.kwargs, **values})
+
+
+def current(env_id: str) -> dict[str, float]:
+    """The values `applied` has set for `env_id` ({} outside it)."""
+    return dict(_APPLIED.get(env_id, {}))

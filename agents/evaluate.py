@@ -25,6 +25,7 @@ from .common import (
     plain_warnings,
     positive_int,
     seed_int,
+    spec,
     task_of,
 )
 from .control.policies import RandomPolicy, ZeroPolicy
@@ -129,7 +130,7 @@ def check_policy_fits(policy, venv) -> None:
 def record_video(env_id: str, policy, video_dir, seed: int = 0, deterministic=True) -> Path:
     """One episode rendered to `video_dir` through Gymnasium's RecordVideo; returns it."""
     video_dir = Path(video_dir)
-    env = gym.make(env_id, render_mode="rgb_array")
+    env = gym.make(spec(env_id), render_mode="rgb_array")
     name = env_id.replace("/", "-")
     env = gym.wrappers.RecordVideo(env, str(video_dir), name_prefix=name, disable_logger=True)
     obs, _ = env.reset(seed=seed)

@@ -18,6 +18,7 @@ from .common import (
     fail,
     positive_int,
     seed_int,
+    spec,
 )
 from .control.linear import UncontrollableError
 from .control.lqr_policy import (  # noqa: F401  (the library's names, as imported from here before)
@@ -82,7 +83,7 @@ def plot_response(env_id: str, path: str, seed: int = 0, Q=None, R=None, **env_k
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    env = gym.make(env_id, **env_kwargs)
+    env = gym.make(spec(env_id), **env_kwargs)
     try:
         base = env.unwrapped
         env.reset(seed=seed)
@@ -209,7 +210,7 @@ def check_output_file(path: str, option: str) -> None:
 
 def run(args) -> int:
     env_id = check_env_id(args.env_id, lagrange=True)
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     env.reset(seed=args.seed)
     try:
         policy = LQRPolicy(env, Q=args.q, R=args.r)
@@ -217,7 +218,7 @@ def run(args) -> int:
         print(describe(policy.design()))
     finally:
         env.close()
-    base_region = expected_region(gym.make(env_id))
+    base_region = expected_region(gym.make(spec(env_id)))
     region = {k: args.scale * v for k, v in base_region.items()}
     print(f"\nstarts: operating point + uniform perturbation within +- {region}")
     lqr_policy = lambda vec: LQRPolicy(vec, Q=args.q, R=args.r)  # noqa: E731
@@ -254,7 +255,7 @@ def _plant(env_id: str, path: Path) -> dict:
 
 def _motors(env_id: str) -> dict:
     """The nominal env's actuator limits (`max_input`) as a gym.make keyword argument."""
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     try:
         limits = getattr(env.unwrapped, "max_input", None)
         return {} if limits is None else {"max_input": [float(v) for v in np.ravel(limits)]}
@@ -267,7 +268,7 @@ def run_on_plant(args, env_id: str, plant: dict, motors: dict) -> int:
     on `plant` (--plant), beside a design made on the plant itself (what a perfect model
     would give) and zero input."""
     design_params = params.current(env_id)  # what --params applied (none: nominal)
-    design_env = gym.make(env_id, **motors)
+    design_env = gym.make(spec(env_id), **motors)
     design_env.reset(seed=args.seed)
     said = ", ".join(f"{k}={v:g}" for k, v in design_params.items()) or "its nominal values"
     print(f"{env_id}: LQR designed on the model with {said}; scored on the plant of {args.plant}")

@@ -7,9 +7,10 @@ The file names model parameters with their values, either as `agents.identify` w
 (`parameters:` holding every parameter; its `env_id` and `friction` entries are not model
 parameters: friction estimates are reported, not applied) or as a plain mapping
 (`m2: 1.4`). Every env the command makes then has these parameters, as
-`gym.make(env_id, **parameters)` would give it: the values are set in the env's
-registration for the command's process (`applied`), so the agents designed, trained and
-scored by the command all see the same plant. A trained run records them (its
+`gym.make(env_id, **parameters)` would give it: within `applied`, the agents make their
+envs from `agents.common.spec(env_id)`, a copy of the registration with the values (the
+registry itself is never written), so the agents designed, trained and scored by the
+command all see the same plant. A trained run records them (its
 config.yml's `env_options`, and its task fingerprint changes with them, so a run trained
 on other parameters is never resumed or reused as this one); `agents.check` trains and
 reports in directories named with their hash (`tag`).
@@ -29,9 +30,7 @@ from pathlib import Path
 
 from dynamics.checks import UnknownParameterError, parameter_name
 
-from .common import UserError, task_of
-
-_APPLIED: dict[str, dict[str, float]] = {}  # env id -> the values `applied` set
+from .common import UserError, applied, current, task_of
 
 
 def add_option(parser) -> None:
@@ -118,32 +117,6 @@ def _held_by_model(path, env_id: str, values: dict[str, float]) -> dict[str, flo
     except ValueError as exc:
         raise UserError(f"--params: {path}: {exc}") from None
     return values
-
-
-@contextlib.contextmanager
-def applied(env_id: str, values: dict[str, float] | None):
-    """Within the block, every `gym.make` / `gym.make_vec` of `env_id` in this process has
-    `values` (set in the env's registration; restored on leaving). None: nothing to do."""
-    if not values:
-        yield
-        return
-    import gymnasium as gym
-
-    spec = gym.spec(env_id)
-    before = dict(spec.kwargs)
-    spec.kwargs.update(values)
-    _APPLIED[env_id] = dict(values)
-    try:
-        yield
-    finally:
-        spec.kwargs.clear()
-        spec.kwargs.update(before)
-        _APPLIED.pop(env_id, None)
-
-
-def current(env_id: str) -> dict[str, float]:
-    """The values `applied` has set for `env_id` ({} outside it)."""
-    return dict(_APPLIED.get(env_id, {}))
 
 
 def tag(env_ids) -> str:

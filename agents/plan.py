@@ -21,6 +21,7 @@ from .common import (
     fail,
     positive_number,
     seed_int,
+    spec,
 )
 from .control.ilqr import (  # noqa: F401  (the planner's names, as imported from here before)
     DEFAULTS,
@@ -42,7 +43,7 @@ def run(env_id: str, seed: int = 0, horizon: float | None = None, replan: bool =
     states (T + 1, 2n), actions (T, n_a), return, success)."""
     from .control.tvlqr import PlanPolicy
 
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     try:
         obs, _ = env.reset(seed=seed)
         options = {} if horizon is None else {"horizon": horizon}

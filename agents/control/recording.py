@@ -1,6 +1,6 @@
 """Recording an exciting input on any Lagrange env, and fitting a record, for `dynamics.identify`.
 
-The env is made with the plant's parameters (`gym.make(env_id, **plant)`) and stepped
+The env is made with the plant's parameters (`gym.make(spec(env_id), **plant)`) and stepped
 without its time limit; the excitation is a periodic multisine (`dynamics.excite`) in the
 env's action units, a `fraction` of the action range. An env that ends early under the
 open-loop input (a pole that falls past its failure angle) is recorded again with half the
@@ -19,7 +19,7 @@ import numpy as np
 
 from dynamics.excite import multisine
 
-from ..common import UserError, lagrange_env, task_of
+from ..common import UserError, lagrange_env, spec, task_of
 
 RATE = 100.0
 """Samples per second of a record (the env stepped at this control rate): at an env's own
@@ -66,7 +66,7 @@ def record(
         plant.setdefault("control_period", 1.0 / rate)
     if candidates > 1:
         seed = best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates)
-    env = lagrange_env(gym.make(env_id, **plant))
+    env = lagrange_env(gym.make(spec(env_id), **plant))
     rec, mode = _excite(env, env_id, seconds, fraction, seed, feedback)
     rng = np.random.default_rng(seed + 1)
     n = env.system.n_q
@@ -133,9 +133,9 @@ def best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates
     """The seed of the excitation, of `candidates` tried on the nominal model (with the
     plant's options that are not model parameters, e.g. its motors), whose record the
     identification finds best conditioned."""
-    names = lagrange_env(gym.make(env_id)).system.parameters
+    names = lagrange_env(gym.make(spec(env_id))).system.parameters
     options = {k: v for k, v in plant.items() if k not in names}
-    env = lagrange_env(gym.make(env_id, **options))
+    env = lagrange_env(gym.make(spec(env_id), **options))
     scores = {}
     for s in range(seed, seed + int(candidates)):
         rec, _ = _excite(env, env_id, seconds, fraction, s, feedback)

@@ -49,6 +49,8 @@ import functools
 
 import gymnasium as gym
 
+from ..common import spec
+
 TAU_FRACTION = 0.2
 """The discount's time constant as a fraction of the episode."""
 GAMMA_MIN, GAMMA_MAX = 0.95, 0.998
@@ -89,7 +91,7 @@ def reward_span(task, env_id: str | None = None) -> float:
 @functools.lru_cache(maxsize=64)
 def _span_of_env(env_id: str, name: str) -> float:
     """The resolved bounds' span, from the made env (once per env id and task name)."""
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     try:
         plant = env.unwrapped.plant
         return float((plant.term_high - plant.term_low).sum())

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..common import UserError
+from ..common import spec as current_spec
 
 
 def task_fingerprint(env_id: str) -> str | None:
@@ -21,7 +22,8 @@ def task_fingerprint(env_id: str) -> str | None:
 
     import gymnasium as gym
 
-    spec = gym.spec(env_id)
+    spec = current_spec(env_id)  # with the values of --params, where applied
+    spec = gym.spec(spec) if isinstance(spec, str) else spec
     task = spec.kwargs.get("task")
     if task is None or not dataclasses.is_dataclass(task):
         return None

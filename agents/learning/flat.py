@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from ..common import lagrange_env, task_of
+from ..common import lagrange_env, spec, task_of
 from ..control.linear import state_names
 
 FLAT = 1e-3
@@ -50,7 +50,7 @@ def success_edges(env_id: str, seed: int = 0) -> Edges:
     """Probe the success set and the reward around the operating point (module docstring)."""
     from .defaults import episode_steps, reward_span
 
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     try:
         base = lagrange_env(env)
         obs, _ = env.reset(seed=seed)

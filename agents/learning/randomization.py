@@ -26,7 +26,7 @@ import math
 
 from dynamics.checks import UnknownParameterError, parameter_name
 
-from ..common import UserError
+from ..common import UserError, spec
 from ..values import Bad, short
 
 INERTIAL_UNITS = ("kg", "kg*m^2")
@@ -173,13 +173,13 @@ def env_kwargs(env_id: str, setting: dict | None) -> dict:
 
     from ..common import lagrange_env
 
-    env = gym.make(env_id)
+    env = gym.make(spec(env_id))
     try:
         out = ranges(lagrange_env(env).system, setting)
     finally:
         env.close()
     try:  # the env checks the ranges (a positive parameter's low > 0, the model's conditions)
-        gym.make(env_id, randomize=out).close()
+        gym.make(spec(env_id), randomize=out).close()
     except ValueError as exc:
         raise UserError(f"randomize on {env_id}: {exc}") from None
     return {"randomize": out}

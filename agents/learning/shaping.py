@@ -34,7 +34,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from envs.checks import Unsupported
 
-from ..common import lagrange_env
+from ..common import lagrange_env, spec
 from ..control.lqr_policy import LQRPolicy
 
 START_SAMPLES = 64
@@ -46,7 +46,7 @@ class LQRPotential:
     `env_id` (see the module docstring)."""
 
     def __init__(self, env_id: str, weight: float, gamma: float, horizon: int):
-        env = gym.make(env_id)
+        env = gym.make(spec(env_id))
         self.lqr = LQRPolicy(lagrange_env(env))  # Unsupported / ValueError where LQR can't be
         self._points: dict[bytes, tuple] = {}  # goal -> (x0, LQR design)
         base = self.lqr.env

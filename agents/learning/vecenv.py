@@ -17,6 +17,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor, VecNormalize
 
+from ..common import current, spec
 from ..control.handover import HandOverVecEnv, handover_options
 
 VECTORIZATIONS = ("auto", "native", "dummy")
@@ -119,20 +120,20 @@ def native_vector_env(env_id: str, n_envs: int, **kwargs) -> gym.vector.VectorEn
     mode = "vector_entry_point"
     try:
         return gym.make_vec(
-            env_id,
+            spec(env_id),
             num_envs=n_envs,
             vectorization_mode=mode,
             autoreset_mode=AutoresetMode.SAME_STEP,
             **kwargs,
         )
     except (TypeError, ValueError):  # the constructor rejects the keyword
-        return gym.make_vec(env_id, num_envs=n_envs, vectorization_mode=mode, **kwargs)
+        return gym.make_vec(spec(env_id), num_envs=n_envs, vectorization_mode=mode, **kwargs)
 
 
 def supports_native(env_id: str) -> bool:
     """True if `env_id` has a vector_entry_point whose env autoresets in the same step."""
-    spec = gym.spec(env_id)
-    if spec.vector_entry_point is None:
+    registered = gym.spec(env_id)
+    if registered.vector_entry_point is None:
         return False
     venv = native_vector_env(env_id, 1)
     try:
@@ -156,7 +157,12 @@ def make_sb3_vec_env(
     if native:
         venv = VecMonitor(GymnasiumVecEnv(native_vector_env(env_id, n_envs, **env_kwargs)))
     else:
-        venv = make_vec_env(env_id, n_envs, vec_env_cls=DummyVecEnv, env_kwargs=env_kwargs)
+        venv = make_vec_env(
+            env_id,
+            n_envs,
+            vec_env_cls=DummyVecEnv,
+            env_kwargs={**current(env_id), **(env_kwargs or {})},
+        )
     venv.seed(seed)
     return venv
 

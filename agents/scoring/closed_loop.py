@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from ..common import lagrange_env
+from ..common import lagrange_env, spec
 from ..control.linear import _indices, state_names
 from ..control.lqr_policy import LQRPolicy, start_region
 from .episodes import run_episodes
@@ -61,7 +61,7 @@ def evaluate_near(
     `predict` built for the vector env, a callable vec -> such an object, or None for
     `LQRPolicy`. An episode succeeds if `info["is_success"]` holds at its last step."""
     vec = gym.make_vec(
-        env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
+        spec(env_id), num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
     )
     try:
         region = dict(expected_region(vec) if region is None else region)

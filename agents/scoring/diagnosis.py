@@ -18,7 +18,7 @@ import numpy as np
 
 from dynamics import wrap
 
-from ..common import lagrange_env
+from ..common import lagrange_env, spec
 from ..learning.flat import Edges, flat_components, success_edges
 
 
@@ -44,7 +44,7 @@ def rollout_ends(
     the success edges."""
     from .episodes import EvalStats
 
-    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec(spec(env_id), num_envs=episodes, vectorization_mode="vector_entry_point")
     try:
         policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
         base = lagrange_env(venv)

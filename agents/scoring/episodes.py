@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..common import spec
+
 ENDINGS = ("success", "failure", "diverged", "time limit")
 
 
@@ -96,7 +98,7 @@ def score(
     import gymnasium as gym
 
     mode = "vector_entry_point"
-    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode=mode, **options)
+    venv = gym.make_vec(spec(env_id), num_envs=episodes, vectorization_mode=mode, **options)
     try:
         policy = build(venv)
         obs, _ = venv.reset(seed=seed)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..common import env_slug
+from ..common import env_slug, spec
 from ..learning.budget import SOLVED_RATE
 
 
@@ -104,7 +104,7 @@ def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
     from .report import Row
     from .trained import SB3Policy
 
-    venv = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec(spec(env_id), num_envs=episodes, vectorization_mode="vector_entry_point")
     try:
         policy = programs.make_agent(str(model_path), venv, seed)
         capture = getattr(policy, "capture", None)

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from agents import check, evaluate, lqr, params, train
-from agents.common import UserError
+from agents.common import UserError, spec
 
 ARM = "Lagrange/TwoLinkArm-v1"
 COMMANDS = {"lqr": lqr.main, "evaluate": evaluate.main, "train": train.main, "check": check.main}
@@ -38,10 +38,12 @@ def test_a_file_is_read_in_either_form_and_applied_within_the_block(identified, 
     nominal = m2_of(gym.make(ARM))
     assert nominal != 1.4
     with params.applied(ARM, values):
-        assert m2_of(gym.make(ARM)) == 1.4
-        venv = gym.make_vec(ARM, num_envs=2, vectorization_mode="vector_entry_point")
+        assert m2_of(gym.make(spec(ARM))) == 1.4
+        venv = gym.make_vec(spec(ARM), num_envs=2, vectorization_mode="vector_entry_point")
         assert float(venv.unwrapped.system.parameters["m2"]) == 1.4
         assert params.tag(ARM).startswith("_params-") and params.current(ARM) == values
+        assert m2_of(gym.make(ARM)) == nominal  # Gymnasium's registry is never written
+        assert "m2" not in gym.spec(ARM).kwargs
     assert m2_of(gym.make(ARM)) == nominal and params.tag(ARM) == ""  # restored
 
 
