@@ -30,6 +30,7 @@ from agents.control.recording import fit as env_fit  # noqa: E402
 from agents.control.recording import record  # noqa: E402
 from dynamics.excite import multisine  # noqa: E402
 from dynamics.identify import REL_STD, identify  # noqa: E402
+from dynamics.regression import with_noise  # noqa: E402
 from dynamics.regressor import with_friction  # noqa: E402
 
 ARM = dict(m1=1.3, m2=0.8, Ibar1=0.1, Ibar2=0.06)
@@ -52,12 +53,7 @@ def simulate(system, x0, controls, seconds=20.0, h=0.01):
 
 
 def noisy(data, seed=0):
-    rng = np.random.default_rng(seed)
-    out = dict(data)
-    out["q"] = data["q"] + NOISE[0] * rng.standard_normal(data["q"].shape)
-    if "qd" in data:
-        out["qd"] = data["qd"] + NOISE[1] * rng.standard_normal(data["qd"].shape)
-    return out
+    return with_noise(data, NOISE, seed)
 
 
 def judge(fit, truth: dict) -> dict:

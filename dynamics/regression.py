@@ -58,6 +58,18 @@ def _mad(x: np.ndarray) -> np.ndarray:
     return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
 
 
+def with_noise(data: dict, std, seed: int = 0) -> dict:
+    """A copy of the record `data` with Gaussian sensor noise of `std` = (positions, rates)
+    added to q (and qd where recorded), from numpy's generator seeded with `seed`: how the
+    recorder and the tests make a record as a sensor would give it."""
+    rng = np.random.default_rng(seed)
+    out = dict(data)
+    out["q"] = data["q"] + std[0] * rng.standard_normal(np.shape(data["q"]))
+    if "qd" in data:
+        out["qd"] = data["qd"] + std[1] * rng.standard_normal(np.shape(data["qd"]))
+    return out
+
+
 def noise_std(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(std, told) per column of a sampled signal: its white measurement noise, estimated
     from its k-th differences (k in ORDERS), where a smooth motion is small, (omega h)^k,

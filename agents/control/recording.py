@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 from dynamics.excite import multisine
+from dynamics.regression import with_noise
 
 from ..common import UserError, lagrange_env, spec, task_of
 
@@ -68,10 +69,8 @@ def record(
         seed = best_excitation(env_id, seconds, plant, fraction, seed, feedback, candidates)
     env = lagrange_env(gym.make(spec(env_id), **plant))
     rec, mode = _excite(env, env_id, seconds, fraction, seed, feedback)
-    rng = np.random.default_rng(seed + 1)
     n = env.system.n_q
-    rec["q"] = rec["q"] + noise[0] * rng.standard_normal(rec["q"].shape)
-    rec["qd"] = rec["qd"] + noise[1] * rng.standard_normal(rec["qd"].shape)
+    rec = with_noise(rec, noise, seed + 1)
     params = env.system.parameters
     rec |= {
         "plant_names": np.array(list(params)),

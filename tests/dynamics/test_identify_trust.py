@@ -14,17 +14,9 @@ import dynamics
 from dynamics import regression
 from dynamics.excite import multisine
 from dynamics.identify import REL_STD, identify
+from dynamics.regression import with_noise
 
 from .test_identify import ARM, simulate
-
-
-def noisy(data, std, seed=0):
-    rng = np.random.default_rng(seed)
-    out = dict(data)
-    out["q"] = data["q"] + std[0] * rng.standard_normal(data["q"].shape)
-    if "qd" in data:
-        out["qd"] = data["qd"] + std[1] * rng.standard_normal(data["qd"].shape)
-    return out
 
 
 def assert_right_or_flagged(fit, truth):
@@ -55,7 +47,7 @@ def test_noise_std_is_told_from_a_record_and_refused_where_the_motion_hides_it(f
     (measured 11-16 %: the robust estimator's spread on 2000 samples and the motion's
     residue); the same record at 20 Hz has steps where the motion's differences are as
     large as the noise's, and the estimator says it cannot tell."""
-    rates = noisy(fast_arm, (0.0, 1e-2))["qd"]
+    rates = with_noise(fast_arm, (0.0, 1e-2))["qd"]
     sigma, told = regression.noise_std(rates)
     assert told.all() and sigma == pytest.approx([1e-2, 1e-2], rel=0.25)
     sigma, told = regression.noise_std(fast_arm["qd"])  # noise-free: nothing white to see
@@ -68,7 +60,7 @@ def test_noise_std_is_told_from_a_record_and_refused_where_the_motion_hides_it(f
 def test_fast_arm_with_noise_not_given_is_right(arm, fast_arm, std):
     """Noise left to the library on the fast arm (the issue: +290 % to +764 %, intervals
     as wide as the values): every inertial parameter right by the issue's test."""
-    fit = identify(arm, noisy(fast_arm, std))
+    fit = identify(arm, with_noise(fast_arm, std))
     assert "estimated" in fit.noise
     assert_right_or_flagged(fit, ARM)
     assert fit.undetermined == {}
@@ -82,7 +74,7 @@ def test_rolling_disk_with_noise_not_given_is_right_or_flagged():
     x0 = system.project(np.array([0, 0, np.pi / 2, 0, 0, 0, 0, 0, 0, -15.0]))
     data = simulate(system, x0, [0.1, 0.02])
     for std in ((1e-3, 1e-2), (3e-3, 5e-2)):
-        fit = identify(disk, noisy(data, std))
+        fit = identify(disk, with_noise(data, std))
         assert_right_or_flagged(fit, true)
         p = fit.parameters
         assert p["J"] <= 2 * p["I"] * (1 + 1e-9)  # a disk: J = 2 I at most (flat)
@@ -105,7 +97,7 @@ def test_what_the_record_does_not_determine_is_kept_and_named(arm):
         U.append(u)
         x = system.step(x, u, dt=h, substeps=10)
     X = np.array(X)
-    data = noisy({"t": t, "q": X[:, :2], "qd": X[:, 2:], "u": np.array(U)}, (1e-3, 1e-2))
+    data = with_noise({"t": t, "q": X[:, :2], "qd": X[:, 2:], "u": np.array(U)}, (1e-3, 1e-2))
     fit = identify(arm, data)
     assert "Ibar1" in fit.undetermined and "kept at its given value" in fit.undetermined["Ibar1"]
     assert fit.parameters["Ibar1"] == arm.parameters["Ibar1"]
@@ -194,7 +186,7 @@ def test_friction_declared_on_a_joint_acts_on_its_relative_rate(arm):
     friction = {"viscous_shoulder": 0.1, "coulomb_shoulder": 0.3,
                 "viscous_elbow": 0.08, "coulomb_elbow": 0.25}  # fmt: skip
     plant = with_friction(arm, joints).compile(**ARM, **friction)
-    data = noisy(simulate(plant, [0.1, 0.2, 0.0, 0.0], [6.0, 3.0], fraction=0.8), (1e-3, 1e-2))
+    data = with_noise(simulate(plant, [0.1, 0.2, 0.0, 0.0], [6.0, 3.0], fraction=0.8), (1e-3, 1e-2))
     fit = identify(arm, data, friction=joints)
     assert set(fit.friction) == {"shoulder", "elbow"}
     est = dict(fit.parameters)
