@@ -32,6 +32,17 @@ What a task declares sets up its learner (`derived`):
   the Segway's seed 0 and the VTOL's seed 0 (70 %, 35 %; a tenth: 90 %). The smaller is
   kept: it moves the user's optimum less, and `agents.check`'s seed 0 then misses only
   the Segway.
+- **copies** (on-policy learners, PPO): a goal-conditioned task's policy must learn how its
+  action depends on the goal, and one PPO update sees the goals of the episodes in one
+  rollout, about one episode per copy at the default 256 steps a copy. So a task whose
+  goal is drawn in d components (`Goal` with low < high) trains on at least
+  `GOALS_PER_COMPONENT`^d copies, as many goals an update as a grid of four values per
+  component (16 for d = 2, 64 for d = 3; the YAML default's 8 for d <= 1), with the
+  minibatch grown alike so an update takes as many gradient steps (`rollout`). Wherever
+  the task, the YAML's entry or the user's file sets n_envs, theirs stands. Measured on
+  the two-link arm (v0, 1 M steps: 16 copies 90-96 % over three seeds, 8 copies 46 %; its
+  declared setting since) and the three-link arm example (d = 3, seed 0, 10 minutes: 8
+  copies 0 % of 100 fresh starts, 32 and 64 copies about 70 %).
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
@@ -56,6 +67,9 @@ TAU_FRACTION = 0.2
 GAMMA_MIN, GAMMA_MAX = 0.95, 0.998
 SHAPING_WEIGHT = 0.5
 """The LQR potential's range as a fraction of one episode's discounted return range."""
+GOALS_PER_COMPONENT = 4
+"""An on-policy rollout's copies: this to the power of the goal's drawn components."""
+MAX_COPIES = 256
 SUCCESS_BONUS = 0.1
 """The training reward's bonus per step inside the success set, as a fraction of one step's
 reward range (after `reward_scale`)."""
@@ -111,10 +125,38 @@ def derived(env_id: str, task) -> dict:
     return out
 
 
+def goal_dimensions(task) -> int:
+    """The goal's components drawn at reset (a `Goal` with low == high is fixed)."""
+    return sum(1 for g in task.goal if not _fixed(g))
+
+
+def _fixed(goal) -> bool:
+    try:
+        return float(goal.low) == float(goal.high)
+    except (TypeError, ValueError):  # bounds naming parameters: drawn
+        return False
+
+
+def rollout(task, hp: dict) -> dict:
+    """n_envs (and batch_size, keeping the minibatches per epoch) for an on-policy learner
+    of `task` from hp's: at least GOALS_PER_COMPONENT^d copies (at most MAX_COPIES), d =
+    goal_dimensions."""
+    base = int(hp.get("n_envs", 1))
+    copies = max(base, min(GOALS_PER_COMPONENT ** goal_dimensions(task), MAX_COPIES))
+    if copies == base:
+        return {}
+    out = {"n_envs": copies}
+    if "batch_size" in hp:
+        out["batch_size"] = int(hp["batch_size"]) * copies // base
+    return out
+
+
 def describe(hp: dict, lqr: bool = True) -> str:
     """One line saying what the derived settings in `hp` are; `lqr`: whether LQR can be
     designed for the env (where it cannot, the potential is named as left out)."""
     parts = [f"gamma {hp['gamma']:g}"] if "gamma" in hp else []
+    if hp.get("n_envs"):
+        parts.append(f"{hp['n_envs']} copies")
     if hp.get("reward_scale"):
         parts.append(f"rewards x {hp['reward_scale']:.3g} (1 / the declared per-step span)")
     shaping = hp.get("shaping") or {}

@@ -17,6 +17,7 @@ from agents.learning.defaults import (
     derived,
     describe,
     discount,
+    goal_dimensions,
     reward_span,
 )
 from agents.learning.flat import flat_components, success_edges
@@ -58,6 +59,27 @@ def test_derived_values_sit_between_the_yaml_default_and_the_task():
     assert "handover" in acro and acro.get("shaping") is None  # hand-over: its own shaping
     bead = hparams.load("ppo", BEAD)  # declares its budget, measured without shaping
     assert bead.get("shaping") is None and bead["gamma"] == pytest.approx(0.975)
+
+
+def test_copies_grow_with_the_goals_drawn_for_on_policy_learners_only(tmp_path):
+    import examples.three_link_arm as three
+
+    arm = gym.spec(three.ID).kwargs["task"]
+    acro = gym.spec(ACROBOT).kwargs["task"]
+    assert goal_dimensions(arm) == 3
+    assert goal_dimensions(acro) == 0  # its goal (upright) is fixed: low == high
+    hp = hparams.load("ppo", three.ID)
+    # 4^3 copies, a grid of four goals per component; the minibatch grows alike, so an
+    # update takes the YAML default's 8 minibatches per epoch
+    assert (hp["n_envs"], hp["batch_size"]) == (64, 2048)
+    assert hp["n_envs"] * hp["n_steps"] // hp["batch_size"] == 8
+    assert hparams.load("ppo", BEAD)["n_envs"] == 8  # one goal component: the default's 8
+    assert "n_envs" not in hparams.load("sac", three.ID)  # off-policy: its own rule
+    own = tmp_path / "own.yml"
+    own.write_text(f"{three.ID}: {{n_envs: 4}}\n")
+    mine = hparams.load("ppo", three.ID, own)
+    assert mine["n_envs"] == 4 and mine["batch_size"] == 256  # a declared n_envs stands
+    assert "64 copies" in describe(hp)
 
 
 def test_shaping_off_and_on_in_the_training_env():
