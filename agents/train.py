@@ -127,13 +127,14 @@ def train(
     hyperparameter `randomize` (agents.learning.randomization, e.g. {"inertial": 0.25}) overriding
     the YAML's; a resumed run without it keeps the one its config.yml records. budget:
     wall-clock seconds; train until solved or out of time (agents.learning.budget), `timesteps`
-    then caps the steps (default: no cap, constant learning rates).
+    then caps the steps (default: no cap; a "lin_X" learning rate then decays over the
+    budget's time, agents.learning.budget.OverBudget).
 
     Raises UserError for problems with the arguments, the hyperparameters or the run
     directory (before anything is written), and TrainingInterrupted after saving when
     SIGINT or SIGTERM stopped the run."""
     env_id = check_env_id(env_id)
-    hp, total, n_envs = _checked_arguments(
+    hp, total, n_envs, decay = _checked_arguments(
         env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
     )
     set_torch_threads(threads)
@@ -165,6 +166,7 @@ def train(
             verbose=verbose,
             allow_missing_buffer=allow_missing_buffer,
             budget=budget,
+            decay=decay,
         )
         return _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **options)
 
@@ -172,10 +174,13 @@ def train(
 def _checked_arguments(
     env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
 ) -> tuple[dict, int, int]:
-    """The run's hyperparameters, total timesteps and n_envs; UserError for a bad argument.
-    A budget without a step count runs to the step cap with constant schedules."""
+    """The run's hyperparameters, total timesteps, n_envs and the learning rate that decays
+    over the budget (or None); UserError for a bad argument. A budget without a step count
+    runs to the step cap with constant schedules, but for the learning rate's."""
     hp = load_hyperparams(algo, env_id, hyperparams)
+    decay = None
     if budget is not None and timesteps is None:  # the clock or success stops it
+        decay = budgets.decaying_rate(hp)
         timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
     n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
@@ -184,7 +189,7 @@ def _checked_arguments(
             raise UserError(f"{name} must be a positive integer, got {value}.")
     if vectorization not in VECTORIZATIONS:
         raise UserError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
-    return hp, total, n_envs
+    return hp, total, n_envs, decay
 
 
 def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool) -> dict:
@@ -217,6 +222,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         # an evaluation's most vector steps: the episodes an eval env runs x the time limit
         steps = -(-o["eval_episodes"] // eval_envs) * episode_steps(env_id, task_of(env_id))
         clock = budgets.Clock(o["budget"] or float("inf"), steps, eval_envs)
+        if o["decay"] is not None:  # the rate decays over the budget's time
+            model.lr_schedule = budgets.OverBudget(o["decay"], clock)
         solved = None
         if o["budget"]:
             solved = stops.solved_stop(

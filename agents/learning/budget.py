@@ -33,9 +33,13 @@ estimate is on the safe side, so a run may end up to about one evaluation early 
 episodes end before the time limit; a budget shorter than the end itself (a few seconds)
 cannot be met.
 
-Without `--timesteps` a budget run has no step count to decay a schedule over, so
-"lin_X" schedules are read as the constant X; with `--timesteps` too, the steps cap the
-run and the schedules decay over them as usual.
+Without `--timesteps` a budget run has no step count to decay a schedule over, so its
+learning rate's "lin_X" decays over the budget's time instead (`OverBudget`: X times the
+share of the budget left, never below `DECAY_FLOOR` x X), and the other "lin_X"
+schedules are read as the constant X; with `--timesteps` too, the steps cap the run and
+the schedules decay over them as usual. A run that is solved early stops while its rate is
+still high; one that trains to the end of its budget settles (the three-link arm example,
+seed 0, 10 minutes: 78 of 100 fresh starts with the decay, 71 at the constant rate).
 
 Repeatability: a step budget (`--timesteps`) with the same seed trains the same agent on
 the same machine (tests/agents/test_budget.py); a wall-clock budget cannot, because
@@ -107,6 +111,37 @@ def budget_eval_freq(
     if budget is None:
         return max(min(total, declared) // 10, 2000)
     return max(declared // 30, 1_000 if off_policy else 10_000)
+
+
+DECAY_FLOOR = 0.05
+"""The learning rate at the end of a budget, as a fraction of its start (`OverBudget`)."""
+
+
+class OverBudget:
+    """A learning rate "lin_X" in a budget run: X times the share of the budget's time left
+    on `clock`, never below DECAY_FLOOR x X. Pickled without its clock (SB3 rebuilds a
+    loaded model's schedule from its constant learning rate; a resumed run sets a new one)."""
+
+    def __init__(self, start: float, clock: Clock | None = None):
+        self.start, self.clock = float(start), clock
+
+    def __call__(self, progress_remaining: float) -> float:
+        clock = self.clock
+        if clock is None or not math.isfinite(clock.seconds):
+            return self.start
+        return self.start * max(clock.left() / clock.seconds, DECAY_FLOOR)
+
+    def __getstate__(self) -> dict:
+        return {"start": self.start}
+
+    def __setstate__(self, state: dict) -> None:
+        self.start, self.clock = float(state["start"]), None
+
+
+def decaying_rate(hp: dict) -> float | None:
+    """X where `hp`'s learning rate is the schedule "lin_X", else None."""
+    rate = hp.get("learning_rate")
+    return float(rate[4:]) if isinstance(rate, str) and rate.startswith("lin_") else None
 
 
 def constant_schedules(hp: dict) -> dict:

@@ -154,6 +154,13 @@ def test_a_budget_run_stops_when_the_time_is_spent(tmp_path, monkeypatch):
     assert evaluated[-1] == result.timesteps
     best = json.loads((tmp_path / "best" / "best.json").read_text())
     assert best["timesteps"] in evaluated
+    # the YAML's "lin_1e-3" decays over the budget's time; the saved model loads (SB3
+    # rebuilds a loaded model's schedule from its learning rate, the constant start)
+    schedule = result.model.lr_schedule
+    assert isinstance(schedule, budget.OverBudget) and schedule.start == pytest.approx(1e-3)
+    assert schedule(1.0) < schedule.start
+    loaded = SB3Policy.load(tmp_path / "model.zip", None).model.lr_schedule
+    assert loaded(0.5) == pytest.approx(1e-3)
 
 
 BUDGET_MARGIN_S = 1.0
@@ -185,6 +192,20 @@ class _Time:
     @classmethod
     def perf_counter(cls) -> float:
         return cls.now
+
+
+def test_the_learning_rate_decays_over_the_budget_s_time(monkeypatch):
+    monkeypatch.setattr(budget.time, "perf_counter", _Time.perf_counter)
+    clock = budget.Clock(100.0)
+    _Time.now = 0.0
+    clock.begin()
+    rate = budget.OverBudget(1e-3, clock)
+    _Time.now = 25.0
+    assert rate(1.0) == pytest.approx(0.75e-3)  # SB3's step progress is not read
+    _Time.now = 99.9
+    assert rate(1.0) == pytest.approx(budget.DECAY_FLOOR * 1e-3)  # never below the floor
+    assert budget.decaying_rate({"learning_rate": "lin_3e-4"}) == pytest.approx(3e-4)
+    assert budget.decaying_rate({"learning_rate": 3e-4}) is None  # a constant stays
 
 
 def test_the_clock_keeps_back_an_evaluation_at_its_longest_and_the_saves(monkeypatch):
