@@ -116,33 +116,50 @@ def learning_section() -> str:
 
 
 def precision_section() -> str:
-    """The precision examples' runs (docs/data/learning-precision-*.json, the newest), one
-    row a run: how long to the confirmed verdict, the confirmation, the check's 20."""
-    files = sorted(DATA.glob("learning-precision-*.json"))
+    """The precision runs (docs/data/learning-precision-*.json), newest file first, one
+    table a file and one row a run: how long to the confirmed verdict, the confirmation,
+    the check's 20 and fresh starts where they were scored."""
+    files = sorted(DATA.glob("learning-precision-*.json"), reverse=True)
     if not files:
         return "No precision runs file (`docs/data/learning-precision-DATE.json`) yet."
-    data = json.loads(files[-1].read_text(encoding="utf-8"))
+    return "\n".join(_precision_table(f) for f in files)
+
+
+def _precision_table(path: Path) -> str:
+    data = json.loads(path.read_text(encoding="utf-8"))
     lines = [
         staleness(data.get("commit"), data.get("date")),
         f"Measured {data['date']} at commit {data.get('commit')} "
         f"({data['machine'].get('cores', '?')} cores; {data['machine'].get('note', '')}); "
-        f"each row's command is in `docs/data/{files[-1].name}`.",
+        f"each row's command{' and machine' if _machines(data) else ''} in "
+        f"`docs/data/{path.name}`.",
         "",
         "| system | learner | seed | variant | budget | solved after | steps | confirmed "
-        "| check's 20 |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| check's 20 | fresh starts |" + (" machine |" if _machines(data) else ""),
+        "|---|---|---|---|---|---|---|---|---|---|" + ("---|" if _machines(data) else ""),
     ]
     for r in data["rows"]:
         solved = r.get("solved")
         seen = (solved or {}).get("confirmed") or {}
         after = f"{solved['seconds']:.0f} s" if solved else "not solved"
+        if r.get("solved_after_s") is not None:
+            after = f"{r['solved_after_s']:.0f} s"
+        budget = f"{r['budget_s']:.0f} s" if r.get("budget_s") else f"{r['steps_budget']:,} steps"
         conf = f"{seen['successes']} of {seen['episodes']}" if seen else ""
+        check = f"{r['success_20']:.0%}" if r.get("success_20") is not None else ""
+        fresh = r.get("fresh")
+        fresh = f"{fresh['successes']} of {fresh['episodes']}" if fresh else ""
         lines.append(
-            f"| {r['system']} | {r['learner']} | {r['seed']} | {r['variant']} "
-            f"| {r['budget_s']:.0f} s | {after} | {r['trained_steps']:,} | {conf} "
-            f"| {r['success_20']:.0%} |"
+            f"| {r['system']} | {r['learner']} | {r['seed']} | {r['variant']} | {budget} "
+            f"| {after} | {r['trained_steps']:,} | {conf} | {check} | {fresh} |"
+            + (f" {r.get('where', '')} |" if _machines(data) else "")
         )
     return "\n".join(lines) + "\n"
+
+
+def _machines(data: dict) -> bool:
+    """Whether the rows name their machines (`where`: a short label, `machine`: in full)."""
+    return any("where" in r for r in data["rows"])
 
 
 def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:

@@ -38,8 +38,7 @@ learning rate's "lin_X" decays over the budget's time instead (`OverBudget`: X t
 share of the budget left, never below `DECAY_FLOOR` x X), and the other "lin_X"
 schedules are read as the constant X; with `--timesteps` too, the steps cap the run and
 the schedules decay over them as usual. A run that is solved early stops while its rate is
-still high; one that trains to the end of its budget settles (the three-link arm example,
-seed 0, 10 minutes: 78 of 100 fresh starts with the decay, 71 at the constant rate).
+still high; one that trains to the end of its budget settles.
 
 Repeatability: a step budget (`--timesteps`) with the same seed trains the same agent on
 the same machine (tests/agents/test_budget.py); a wall-clock budget cannot, because

@@ -39,10 +39,8 @@ What a task declares sets up its learner (`derived`):
   `GOALS_PER_COMPONENT`^d copies, as many goals an update as a grid of four values per
   component (16 for d = 2, 64 for d = 3; the YAML default's 8 for d <= 1), with the
   minibatch grown alike so an update takes as many gradient steps (`rollout`). Wherever
-  the task, the YAML's entry or the user's file sets n_envs, theirs stands. Measured on
-  the two-link arm (v0, 1 M steps: 16 copies 90-96 % over three seeds, 8 copies 46 %; its
-  declared setting since) and the three-link arm example (d = 3, seed 0, 10 minutes: 8
-  copies 0 % of 100 fresh starts, 32 and 64 copies about 70 %).
+  the task, the YAML's entry or the user's file sets n_envs, theirs stands. The runs
+  behind the rule: docs/learning.md, "Precision and goal-conditioned tasks".
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
