@@ -9,6 +9,11 @@ describes (envs/, dynamics/, agents/) changed after the measurement.
 stores a learning benchmark's results.csv (`benchmarks/learning.py`) as
 docs/data/learning.json with today's date, the checkout's commit and the machine, which
 the learning page then renders: a new result lands without editing prose.
+
+    python scripts/docs_data.py main-job runs/check/results.csv --wall 1779 --command "..."
+
+stores a run of the main job (`python -m agents.check`, its report's results.csv and its
+wall time) as docs/data/main-job.json, which the home page renders.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "data"
 LEARNING = DATA / "learning.json"
+MAIN_JOB = DATA / "main-job.json"
 CODE = ("envs", "dynamics", "agents")  # the code a measurement describes
 
 
@@ -183,6 +189,61 @@ def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:
     return LEARNING
 
 
+def store_main_job(
+    csv_path: str, wall_s: float, command: str, note: str = "", commit: str | None = None
+) -> Path:
+    """docs/data/main-job.json from a main job's results.csv and its wall time."""
+    import csv
+
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.baselines import machine
+    from dynamics.files import write_atomic
+
+    with open(csv_path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    data = {
+        "run": {
+            "command": command,
+            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "commit": commit or head_commit(),
+            "machine": machine(),
+            "wall_s": float(wall_s),
+            "note": note,
+        },
+        "rows": rows,
+    }
+    write_atomic(MAIN_JOB, json.dumps(data, indent=1) + "\n")
+    return MAIN_JOB
+
+
+def main_job_section() -> str | None:
+    """The main job's last measured run (docs/data/main-job.json): its wall time and each
+    built-in's trained agent, or None where no run is stored."""
+    if not MAIN_JOB.exists():
+        return None
+    data = json.loads(MAIN_JOB.read_text(encoding="utf-8"))
+    run, m = data["run"], data["run"]["machine"]
+    trained = [r for r in data["rows"] if r.get("algo") or r["agent"].endswith(" alone")]
+    lines = [
+        f"{run['wall_s'] / 60:.0f} minutes for the whole job on {m.get('cores', '?')} cores "
+        f"({m.get('cpu', '?')}), measured {run['date'][:10]} at commit {run['commit']} by "
+        f"`{run['command']}`{'; ' + run['note'] if run.get('note') else ''}. Its trained "
+        "agents, each on the report's 20 episodes:",
+        "",
+        "| environment | agent | success [95 % CI] | trained steps | training (s) | note |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in trained:
+        steps = f"{int(float(r['timesteps'])):,}" if r.get("timesteps") else ""
+        seconds = f"{float(r['train_s']):.0f}" if r.get("train_s") else ""
+        lines.append(
+            f"| {r['env_id']} | {r['agent']} | {float(r['success_rate']):.0%} "
+            f"[{float(r['success_low']):.0%}, {float(r['success_high']):.0%}] "
+            f"| {steps} | {seconds} | {r.get('note', '')} |"
+        )
+    return staleness(run.get("commit"), run.get("date")) + "\n" + "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="kind", required=True)
@@ -191,8 +252,17 @@ def main(argv: list[str] | None = None) -> int:
     learning.add_argument("--command", default="python benchmarks/learning.py",
                           help="the benchmark's command line, as run")  # fmt: skip
     learning.add_argument("--budget", type=float, default=600.0, help="its budget, seconds")
+    job = sub.add_parser("main-job", help="store a main job's results.csv and wall time")
+    job.add_argument("csv", help="runs/check/results.csv of `python -m agents.check`")
+    job.add_argument("--wall", type=float, required=True, help="its wall time, seconds")
+    job.add_argument("--command", required=True, help="the command line, as run")
+    job.add_argument("--note", default="", help="how the machine was loaded, the cache")
+    job.add_argument("--commit", help="the commit it ran (default: this checkout's)")
     args = parser.parse_args(argv)
-    print(store_learning(args.csv, args.command, args.budget))
+    if args.kind == "main-job":
+        print(store_main_job(args.csv, args.wall, args.command, args.note, args.commit))
+    else:
+        print(store_learning(args.csv, args.command, args.budget))
     return 0
 
 

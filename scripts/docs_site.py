@@ -796,8 +796,11 @@ def on_files(files, config):
 
 
 def main_job_cost() -> str:
-    """What the main job cost when the agents benchmark last ran it whole (its first run in
-    docs/data/agents.json), dated, with its command and machine."""
+    """What the main job cost: its last stored run (docs/data/main-job.json), else the agents
+    benchmark's first run (docs/data/agents.json), dated, with its command and machine."""
+    measured = data().main_job_section()
+    if measured is not None:
+        return measured
     results = benchmark()
     if results is None:
         return "No measurement yet (`docs/data/agents.json`)."

@@ -74,10 +74,28 @@ def test_every_data_file_is_dated_with_its_machine_and_command():
     robustness = json.loads((DOCS / "data" / "robustness.json").read_text(encoding="utf-8"))
     for run in robustness["runs"]:
         assert run["date"] and run["command"] and run["machine"], run
-    learning = DOCS / "data" / "learning.json"
-    if learning.exists():
-        run = json.loads(learning.read_text(encoding="utf-8"))["run"]
-        assert run["date"] and run["command"] and run["machine"] and run["commit"], run
+    for name in ("learning.json", "main-job.json"):
+        if (DOCS / "data" / name).exists():
+            run = json.loads((DOCS / "data" / name).read_text(encoding="utf-8"))["run"]
+            assert run["date"] and run["command"] and run["machine"] and run["commit"], run
+    for path in (DOCS / "data").glob("learning-precision-*.json"):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        assert data["date"] and data["commit"] and data["machine"], path
+        assert all(r["command"] for r in data["rows"]), path
+
+
+def test_the_main_job_s_cost_renders_from_its_run(tmp_path, monkeypatch):
+    csv = tmp_path / "results.csv"
+    csv.write_text(
+        "env_id,agent,success_rate,success_low,success_high,timesteps,train_s,algo,note\n"
+        "Lagrange/BeadOnRod-v1,lqr,1.0,0.84,1.0,,,,\n"
+        "Lagrange/BeadOnRod-v1,ppo,0.95,0.76,0.99,200704,58.0,ppo,\n"
+    )
+    monkeypatch.setattr(docs_data, "MAIN_JOB", tmp_path / "main-job.json")
+    docs_data.store_main_job(str(csv), 1779.0, "python -m agents.check", "quiet")
+    text = docs_data.main_job_section()
+    assert "30 minutes" in text and "| Lagrange/BeadOnRod-v1 | ppo | 95% [76%, 99%]" in text
+    assert "lqr" not in text  # the baselines are the report's, not the cost's
 
 
 def test_a_result_older_than_the_code_says_so(monkeypatch):
