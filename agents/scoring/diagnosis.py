@@ -198,7 +198,14 @@ def advice(ends: Ends, others: dict, flat: list[str], edges: Edges) -> list[str]
             + f": {what}"
         )
     good = [a for a, e in others.items() if e.endings.get("success", 0) >= MISSED * n]
-    if good:
+    if ends.lqr_share is not None:  # it hands over already: the successes are LQR's too
+        if ends.endings.get("success", 0) >= MISSED * n:
+            out.append(
+                f"the successes are the hand-over's as much as the agent's (LQR acted in "
+                f"{ends.lqr_share:.0%} of the steps), and the agent alone misses: a longer "
+                "budget for the agent, or judge the task by the pair, as the report does"
+            )
+    elif good:
         out.append(
             f"{good[0]} succeeds from the same starts: where the agent brings the "
             "state near the goal, a declared LQR hand-over (hyperparams "

@@ -73,3 +73,9 @@ def test_the_diagnosis_says_which_condition_of_the_success_set_is_missed_and_wha
     assert len(tips) == 1 and "does not come to rest (theta_dot" in tips[0]
     lqr = dataclasses.replace(ends, agent="lqr", endings={"success": n})
     assert "lqr succeeds from the same starts" in advice(ends, {"lqr": lqr}, [], edges)[-1]
+    # a run that hands over already is not told to declare a hand-over (the acrobot's agent
+    # alone at 5 % while the pair succeeds 20 of 20)
+    paired = dataclasses.replace(ends, endings={"success": n}, lqr_share=0.82)
+    tips = advice(paired, {"lqr": lqr}, [], edges)
+    assert not any("declared LQR hand-over" in t for t in tips)
+    assert "the hand-over's as much as the agent's (LQR acted in 82% of the steps)" in tips[-1]
