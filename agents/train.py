@@ -173,7 +173,7 @@ def train(
 
 def _checked_arguments(
     env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
-) -> tuple[dict, int, int]:
+) -> tuple[dict, int, int, float | None]:
     """The run's hyperparameters, total timesteps, n_envs and the learning rate that decays
     over the budget (or None); UserError for a bad argument. A budget without a step count
     runs to the step cap with constant schedules, but for the learning rate's."""
