@@ -197,12 +197,12 @@ class _Time:
 def test_the_learning_rate_decays_over_the_budget_s_time(monkeypatch):
     monkeypatch.setattr(budget.time, "perf_counter", _Time.perf_counter)
     clock = budget.Clock(100.0)
-    _Time.now = 0.0
+    monkeypatch.setattr(_Time, "now", 0.0)  # restored after the test: the clock's test reads it
     clock.begin()
     rate = budget.OverBudget(1e-3, clock)
-    _Time.now = 25.0
+    monkeypatch.setattr(_Time, "now", 25.0)
     assert rate(1.0) == pytest.approx(0.75e-3)  # SB3's step progress is not read
-    _Time.now = 99.9
+    monkeypatch.setattr(_Time, "now", 99.9)
     assert rate(1.0) == pytest.approx(budget.DECAY_FLOOR * 1e-3)  # never below the floor
     assert budget.decaying_rate({"learning_rate": "lin_3e-4"}) == pytest.approx(3e-4)
     assert budget.decaying_rate({"learning_rate": 3e-4}) is None  # a constant stays
