@@ -241,7 +241,8 @@ def main_job_section() -> str | None:
             f"[{float(r['success_low']):.0%}, {float(r['success_high']):.0%}] "
             f"| {steps} | {seconds} | {r.get('note', '')} |"
         )
-    return staleness(run.get("commit"), run.get("date")) + "\n" + "\n".join(lines) + "\n"
+    old = staleness(run.get("commit"), run.get("date"))  # an admonition: its own paragraph
+    return "\n".join(lines) + "\n" + (f"\n{old}\n" if old else "")
 
 
 def main(argv: list[str] | None = None) -> int:
