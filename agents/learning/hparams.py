@@ -309,22 +309,22 @@ def load(algo: str, env_id: str, path: str | Path | None = None) -> dict:
                 f"No {algo} hyperparameters for {env_id!r}: it is not a Lagrange env and "
                 f"{algo}.yml has no entry for it; give --hyperparams FILE."
             ) from None
-        task = None
+        task, own = None, {}
     else:
         own = task.hyperparams.get(algo, {})
         hp.update(check_entries(derived_for(env_id, task, own), f"{env_id}'s declaration"))
-    layers = [task.hyperparams.get(algo, {}) if task else {}, packaged.get(env_id, {})]
+    layers = [(own, f"{env_id}'s task ({algo})")]
+    layers.append((packaged.get(env_id, {}), f"{packaged_path} ({env_id})"))
     if path is not None:
         user = read_table(Path(path))
         check_file_applies(user, path, env_id)
-        layers += [user.get("default", {}), user.get(env_id, {})]
-    if task is not None and not off_policy(algo) and not any("n_envs" in t for t in layers):
+        layers += [(user.get(entry, {}), f"{path} ({entry})") for entry in ("default", env_id)]
+    declared = any("n_envs" in table for table, _ in layers)
+    if task is not None and not off_policy(algo) and not declared:
         from .defaults import rollout
 
         hp.update(rollout(task, hp))  # a declared n_envs stands
-    sources = [f"{env_id}'s task ({algo})", f"{packaged_path} ({env_id})"]
-    sources += [f"{path} (default)", f"{path} ({env_id})"]
-    for table, where in zip(layers, sources):
+    for table, where in layers:
         hp.update(check_entries(table, where))
     return hp
 
