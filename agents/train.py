@@ -183,10 +183,14 @@ def _checked_arguments(
         decay = budgets.decaying_rate(hp)
         timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
-    n_envs = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
+    declared = int(hp.get("n_envs", 1))
+    n_envs = int(n_envs if n_envs is not None else declared)
     for name, value in (("timesteps", total), ("n_envs", n_envs), ("eval_episodes", eval_episodes)):
         if value < 1:
             raise UserError(f"{name} must be a positive integer, got {value}.")
+    if n_envs != declared and "batch_size" in hp and not off_policy(algo):
+        # a rollout of other copies keeps its minibatches per epoch (as defaults.rollout)
+        hp["batch_size"] = max(int(hp["batch_size"]) * n_envs // declared, 1)
     if vectorization not in VECTORIZATIONS:
         raise UserError(f"vectorization must be one of {VECTORIZATIONS}, got {vectorization!r}.")
     return hp, total, n_envs, decay

@@ -82,6 +82,21 @@ def test_copies_grow_with_the_goals_drawn_for_on_policy_learners_only(tmp_path):
     assert "64 copies" in describe(hp)
 
 
+def test_n_envs_asked_for_keeps_the_minibatches_per_epoch():
+    from agents.train import _checked_arguments
+
+    def settings(algo, n_envs):
+        hp, _, n, _ = _checked_arguments(BEAD, algo, 1000, n_envs, 10, "auto", None, None)
+        return n, hp.get("batch_size")
+
+    n, batch = settings("ppo", None)  # the YAML's 8 copies, 8 minibatches of 256 steps
+    assert (n, batch) == (8, 256)
+    assert settings("ppo", 2) == (2, 64)  # a quarter of the rollout, a quarter the minibatch
+    assert settings("ppo", 32) == (32, 1024)
+    sac = hparams.load("sac", BEAD)  # off-policy: its batch is per gradient step, kept
+    assert settings("sac", 4)[1] == sac.get("batch_size")
+
+
 def test_shaping_off_and_on_in_the_training_env():
     hp = {**hparams.load("ppo", BEAD), "shaping": {"lqr": 0.5}}
     train, evaluation = make_envs(BEAD, {**hp, "normalize": False}, 2, 0, "auto", 1)
