@@ -239,6 +239,7 @@ def test_equations_render_offline_in_a_real_browser(site):
             assert not any(check.count(found, k) for k in check.FINDINGS), (page, found)
 
 
+@pytest.mark.slow
 def test_the_browser_probe_catches_source_tex_shrunk_formulas_and_errors(tmp_path):
     """The probe on a page made to fail: TeX left as source in the text, an SVG squeezed to
     a tenth of its width, a name broken across lines, a console error; and a clean page

@@ -79,6 +79,7 @@ def test_the_plan_tracker_follows_its_clock_on_a_plant_that_is_not_its_model(ben
     assert policy._k.tolist() == [5, 5]
 
 
+@pytest.mark.slow
 def test_a_small_run_writes_results_and_a_figure(bench, tmp_path, capsys):
     argv = ["--envs", ARM, "--agents", "lqr,ppo", "--quantities", "m2,delay", "--episodes",
             "3", "--grid", "3", "--no-train", "--models", str(tmp_path / "none"),

@@ -44,6 +44,7 @@ def test_the_same_seed_and_step_budget_train_the_same_agent(tmp_path):
     assert any(not np.array_equal(v, _parameters(other.model)[k]) for k, v in first.items())
 
 
+@pytest.mark.slow
 def test_a_budget_run_stops_when_solved_keeping_the_model_that_met_it(tmp_path, monkeypatch):
     monkeypatch.setattr(budget, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
     monkeypatch.setattr(confirmation, "RATE", 0.0)  # and any confirmation confirms it

@@ -39,6 +39,7 @@ def check(out, timesteps, hyperparams=None, fresh=False):
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_check_writes_the_comparison(tmp_path, capsys, tiny):
     out = tmp_path / "check"
     (out / "results.md").parent.mkdir()

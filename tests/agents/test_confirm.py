@@ -5,6 +5,7 @@ fresh evaluation is statistics, not a difference of setup)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import sync_envs_normalization
 
@@ -19,6 +20,7 @@ from agents.train import train
 BEAD = next(e for e in envs.ENV_IDS if "/BeadOnRod-" in e)
 
 
+@pytest.mark.slow
 def test_training_s_evaluation_the_confirmation_and_the_check_see_the_same_episodes(tmp_path):
     result = train(BEAD, timesteps=512, n_envs=1, eval_episodes=2, progress=False,
                    run_dir=tmp_path, seed=0)  # fmt: skip

@@ -55,6 +55,7 @@ def test_cli_rejects_bad_arguments(argv, message, capsys):
     assert exc.value.code == 2 and message in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_prints_the_scores(capsys):
     assert main(["Lagrange/CrankSlider-v1", "--agent", "lqr", "--episodes", "2"]) == 0
     assert "lqr on Lagrange/CrankSlider-v1: return" in capsys.readouterr().out

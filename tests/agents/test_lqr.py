@@ -11,6 +11,8 @@ from agents.scoring import closed_loop
 from envs.tasks import acrobot
 from tests.matrix import over
 
+LQR_FAST = ("Lagrange/TwoLinkArm-v1", "Lagrange/BeadOnRod-v1")
+
 
 @pytest.fixture(scope="module")
 def arm():
@@ -182,7 +184,10 @@ envs = pytest.importorskip("envs")
 
 # the bicycle's plain LQR is refused (its constraints tie pitch and yaw rate to lean and
 # steer); its heuristic, the constraint-reduced LQR, is tested in test_bicycle_env.py
-@pytest.mark.parametrize("env_id", over(e for e in envs.ENV_IDS if "/Bicycle-" not in e))
+# the fast suite steps the arm and the bead (the disk's and the crank's closed loops take 4-5 s)
+@pytest.mark.parametrize(
+    "env_id", over((e for e in envs.ENV_IDS if "/Bicycle-" not in e), fast=LQR_FAST)
+)
 def test_lqr_brings_every_env_to_its_goal_where_zero_torque_fails(env_id):
     # 100 seeded episodes from the operating point of each drawn goal, perturbed uniformly
     # within the task's LQR region, at most 1/1.6 of the largest region with >= 99 %

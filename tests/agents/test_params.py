@@ -92,6 +92,7 @@ def test_lqr_and_evaluate_run_on_the_parameters_of_the_file(tmp_path, capsys):
     assert f"zero on {ARM} (parameters from {path}):" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_run_records_its_parameters_and_resumes_only_with_them(tmp_path):
     small = dict(algo="ppo", n_envs=1, eval_freq=512, eval_episodes=2, progress=False)
     with params.applied(ARM, {"m2": 1.4}):

@@ -147,7 +147,12 @@ def test_swing_up_refuses_a_model_that_is_not_a_two_link_arm():
 
 
 @pytest.mark.parametrize(
-    "env_id", ["Lagrange/TwoLinkArm-v1", "Lagrange/BeadOnRod-v1", "Lagrange/CrankSlider-v1"]
+    "env_id",
+    [
+        "Lagrange/TwoLinkArm-v1",
+        "Lagrange/BeadOnRod-v1",
+        pytest.param("Lagrange/CrankSlider-v1", marks=pytest.mark.slow),  # 2.5 s of closed loop
+    ],
 )
 def test_model_based_heuristics_solve_their_tasks(env_id):
     stats = evaluate(env_id, "heuristic", episodes=5, seed=0)

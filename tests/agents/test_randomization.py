@@ -62,6 +62,7 @@ def test_the_training_envs_draw_their_parameters_at_every_reset():
         eval_env.close()
 
 
+@pytest.mark.slow
 def test_the_setting_is_saved_and_a_resume_keeps_it(tmp_path):
     train(BEAD, timesteps=512, run_dir=tmp_path, randomize={"m": 0.2}, **SMALL)
     config = yaml.safe_load((tmp_path / "config.yml").read_text())

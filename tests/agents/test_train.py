@@ -47,6 +47,7 @@ def test_a_few_hundred_steps_train_end_to_end(env_id, tmp_path):
     assert not list(tmp_path.glob(".*.zip")), "a temporary file was left behind"
 
 
+@pytest.mark.slow
 def test_saved_model_gives_identical_actions(tmp_path):
     result = train(ARM, timesteps=512, run_dir=tmp_path, **SMALL)
     vecnorm = result.model.get_vec_normalize_env()
@@ -58,6 +59,7 @@ def test_saved_model_gives_identical_actions(tmp_path):
     np.testing.assert_array_equal(actions, expected)  # same weights, same float32 arithmetic
 
 
+@pytest.mark.slow
 def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_path):
     # A run stopped at its 512-step checkpoint, then resumed to a budget of 1024.
     train(BEAD, timesteps=512, run_dir=tmp_path, **SMALL)
@@ -76,6 +78,7 @@ def test_resume_continues_the_timestep_count_and_the_learning_rate_schedule(tmp_
     assert rows[: len(first)] == first and rows[-1].startswith("1024,")
 
 
+@pytest.mark.slow
 def test_resume_without_a_checkpoint_starts_fresh(tmp_path, capsys):
     result = train(BEAD, timesteps=512, run_dir=tmp_path, resume=True, **SMALL)
     assert result.timesteps == 512
@@ -110,6 +113,7 @@ def test_cli_rejects_bad_arguments_with_clear_messages(argv, message, capsys):
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_trains_and_reports(tmp_path, capsys):
     code = main(
         [

@@ -78,6 +78,7 @@ def test_an_alias_bomb_is_refused_before_it_expands(tmp_path, capsys):
     assert "expands to more than" in err and len(err) < 300
 
 
+@pytest.mark.slow
 def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
     path = tmp_path / "hp.yml"
     path.write_text(yaml.safe_dump({BEAD: {"n_steps": 128, "batch_size": 64, "gamma": 0.9}}))
@@ -88,6 +89,7 @@ def test_a_hyperparameter_file_overrides_the_packaged_one(tmp_path):
     assert config["hyperparams_file"] == str(path) and config["hyperparams"]["n_steps"] == 128
 
 
+@pytest.mark.slow
 def test_progress_shows_in_logs_as_periodic_lines(tmp_path, capsys, monkeypatch):
     """Where stderr is not a terminal (a log file: here, pytest's capture), training prints
     a line every LogProgress.every seconds instead of a progress bar."""

@@ -136,6 +136,7 @@ def test_the_temporary_names_of_atomic_writes_are_recognised(tmp_path):
         assert not is_stale_temporary(name), name
 
 
+@pytest.mark.slow
 def test_resume_removes_what_killed_writes_left_behind(tmp_path):
     train(BEAD, timesteps=256, run_dir=tmp_path, eval_freq=256, **SMALL)
     ckpt = tmp_path / "checkpoints"
@@ -198,6 +199,7 @@ def test_a_replay_buffer_checkpoint_holds_the_filled_rows_only(tmp_path):
     assert after.size() == 1201
 
 
+@pytest.mark.slow
 def test_resume_refuses_a_checkpoint_without_its_replay_buffer(tmp_path):
     kwargs = dict(algo="sac", eval_freq=1000, eval_episodes=1, progress=False, run_dir=tmp_path)
     train(BEAD, timesteps=200, **kwargs)
@@ -208,6 +210,7 @@ def test_resume_refuses_a_checkpoint_without_its_replay_buffer(tmp_path):
     assert result.timesteps == 300 and result.model.replay_buffer.size() == 100
 
 
+@pytest.mark.slow
 def test_a_signal_during_an_evaluation_ends_it_at_the_next_step_and_saves(tmp_path, monkeypatch):
     """SB3 looks at callbacks only between evaluations; the evaluation polls the stop."""
     calls = []

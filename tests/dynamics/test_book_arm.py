@@ -99,6 +99,7 @@ def test_hanging_modes_of_uniform_rods():
     np.testing.assert_allclose(w2, expected, rtol=1e-12)  # exact Jacobians: round-off only
 
 
+@pytest.mark.slow
 def test_equations_match_sympy_lagranges_method(arm):
     """An independent derivation with sympy.physics.mechanics' rigid bodies and LagrangesMethod."""
     th1, th2, p, M1, M2 = _symbols(arm)

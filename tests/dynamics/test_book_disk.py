@@ -68,6 +68,7 @@ def book_737(disk, as_printed=False):
     )
 
 
+@pytest.mark.slow
 def test_737_holds_at_random_rolling_states():
     """(7.37) against the compiled disk (inputs are zero in the book; here they are random,
     so the check uses (7.37) plus their generalised forces, test_drive_and_steer_...)."""
@@ -119,6 +120,7 @@ def _book_energies(disk):
     return T, m * g * r * S(th)
 
 
+@pytest.mark.slow
 def test_energies_730_733_734_at_random_states():
     model = dynamics.get_model("rolling_disk")
     T, V = _book_energies(model)

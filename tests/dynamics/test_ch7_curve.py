@@ -72,6 +72,7 @@ def test_equation_is_714_with_the_generalised_force_of_the_whole_given_force():
     assert sp.simplify(model.equations()[0] - (ddt - dTdx - Q)) == 0
 
 
+@pytest.mark.slow
 def test_fixed_curve_gives_715():
     model = dynamics.get_model(
         "particle_on_curve", curve="k*x**2 + c3*x**3", curve_parameters={"k": 0.5, "c3": 0.1}

@@ -13,6 +13,7 @@ def arm():
     return dynamics.get_model("two_link_arm")
 
 
+@pytest.mark.slow
 def test_matrices_are_those_of_726(arm):
     p = arm.parameters
     M, K = mass_and_stiffness(arm, [0.0, 0.0])

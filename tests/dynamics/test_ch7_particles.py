@@ -67,6 +67,7 @@ def test_cartesian_equations_are_74_with_Fz_in_the_third():
     assert not _same(ours, printed)  # (7.4) prints F_y in the z equation: docs/errata.md
 
 
+@pytest.mark.slow
 def test_cylindrical_equations_are_78_with_the_forces_of_79_corrected():
     model = _derived("particle_cylindrical")
     (r, phi, z), p, Fx, Fy, Fz = _symbols(model)
@@ -128,6 +129,7 @@ def test_nonholonomic_equations_are_716():
     assert _same(model.derived.constraint_matrix.T, [a, b, c])  # B_11, B_12, B_13 = a, b, c
 
 
+@pytest.mark.slow
 def test_parabolic_generalised_forces_and_arc_length():
     model = dynamics.get_model("particle_parabolic_cylindrical")
     (xi, eta, zeta), p, *_ = _symbols(model)
@@ -169,6 +171,7 @@ START = {  # away from each system's singular set for the whole second
 
 
 @pytest.mark.parametrize("name", _cases(CURVILINEAR))
+@pytest.mark.slow
 def test_curvilinear_motion_is_the_cartesian_parabola(name):
     """Under a constant force (gravity and a constant input) the particle moves on the
     parabola r0 + v0 t + a t^2 / 2 whatever coordinates describe it."""

@@ -22,6 +22,7 @@ def system(model):
     return model.compile()
 
 
+@pytest.mark.slow
 def test_coordinates_cover_the_sphere_with_rank_three(model):
     theta, varphi, psi = model.spec.coordinates
     R = next(s for s in model.spec.parameters if s.name == "R")
@@ -33,6 +34,7 @@ def test_coordinates_cover_the_sphere_with_rank_three(model):
     assert J.subs(generic | {theta: 0}).rank() == 2  # psi is undefined at sin(theta) = 0
 
 
+@pytest.mark.slow
 def test_equations_are_lagrange_by_hand(model):
     """T = R^2 (theta'^2 + cos^2 varphi'^2 + sin^2 psi'^2) / 2, V = k R^2 cos^2 / 2."""
     theta, varphi, psi = model.spec.coordinates

@@ -11,6 +11,7 @@ def test_list_names_every_model(capsys):
     assert {"two_link_arm", "rolling_disk", "bead_on_rotating_rod"} <= set(out)
 
 
+@pytest.mark.slow
 def test_show_prints_equations_and_latex(capsys):
     assert main(["show", "bead_on_rotating_rod"]) == 0
     text = capsys.readouterr().out

@@ -59,6 +59,7 @@ def test_program_shares_and_differentiates_through_its_steps():
             assert got == pytest.approx(want, rel=1e-13)  # the chain rule in another order
 
 
+@pytest.mark.slow
 def test_derivation_and_code_generation_never_simplify(monkeypatch):
     from dynamics.codegen import generate
 
@@ -73,6 +74,7 @@ def test_derivation_and_code_generation_never_simplify(monkeypatch):
         d.equations  # noqa: B018  (the display forms do simplify, when asked)
 
 
+@pytest.mark.slow
 def test_chain_on_a_cart_equals_lagranges_method():
     """An independent route: sympy's own Lagrange derivation of the same system."""
     n = 3

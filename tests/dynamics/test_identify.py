@@ -91,6 +91,7 @@ def test_arm_base_parameters_without_gravity_are_the_known_combinations(arm):
     assert fit.parameters["Ibar1"] == pytest.approx(0.1 + 0.16 * (1.3 - 1.0), rel=1e-5)
 
 
+@pytest.mark.slow
 def test_noisy_record_with_coulomb_friction_within_5_percent_and_covered(arm):
     """Sensor noise std 1e-3 rad and 1e-2 rad/s, viscous and Coulomb friction in the plant,
     ten noise draws: every inertial parameter within 5 % in each (measured: at most 1.7 %;

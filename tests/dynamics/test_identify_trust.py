@@ -80,6 +80,7 @@ def test_rolling_disk_with_noise_not_given_is_right_or_flagged():
         assert p["J"] <= 2 * p["I"] * (1 + 1e-9)  # a disk: J = 2 I at most (flat)
 
 
+@pytest.mark.slow
 def test_what_the_record_does_not_determine_is_kept_and_named(arm):
     """The shoulder held still by a stiff servo (its torque recorded), the elbow driven:
     Ibar1 multiplies the shoulder's acceleration, which stays zero, so the record cannot

@@ -211,6 +211,7 @@ SLIP = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_an_index_far_out_of_range_is_an_error_not_a_crash():
     # in a subprocess: unchecked, numba read 400 MB past the buffer and the process died
     out = subprocess.run([sys.executable, "-c", SLIP], capture_output=True, text=True, timeout=300)

@@ -150,7 +150,11 @@ def _task_on(model):
     return envs.Task(**{**arm.TASK.__dict__, "model": model})
 
 
-@pytest.mark.parametrize("kind", ["name", "Model", "factory", "System"])
+# each form compiles its model's kernels (1-2 s): the fast suite builds the factory's
+@pytest.mark.parametrize(
+    "kind",
+    [pytest.param(k, marks=pytest.mark.slow) for k in ("name", "Model", "System")] + ["factory"],
+)
 def test_env_from_a_name_a_model_a_factory_or_a_system(kind):
     from dynamics.models.arm import two_link_arm
 
