@@ -16,10 +16,13 @@ refused unless --fresh retrains it. Training time is stored in the run directory
 (`TIME_FILE`, summed over resumed segments); evaluation time excludes one-off compilation
 and loading (an untimed first episode per agent).
 
-A system that declares no training budget (no n_timesteps in its task's hyperparameters,
-the packaged YAML's entry or a --hyperparams file; a user's new system) trains until solved
-within 10 minutes (`agents.learning.declared`, as `--budget 10m`), afresh; the built-in tasks
-declare theirs. `--timesteps` or `--budget` sets every env's.
+Every agent trains until solved (`agents.learning.budget`'s rule, confirmed on fresh
+starts), at most its declared n_timesteps (the task's hyperparameters, the packaged YAML's
+entry or a --hyperparams file; the built-in tasks declare theirs); a system that declares
+none (a user's new system) at most 10 minutes (`agents.learning.declared`, as `--budget
+10m`). A solved run is reused by a re-run (`rundir.solved_run`); one of a time budget that
+was not trains afresh (a clock cannot be resumed). `--budget` sets every env's time;
+`--timesteps N` trains every env for N steps, to the end.
 """
 
 from __future__ import annotations
@@ -52,12 +55,18 @@ from .common import (
     write_atomic,
 )
 from .evaluate import BASELINES, heuristic_of
-from .learning import declared, hparams, randomization
+from .learning import budget as budgets
+from .learning import declared, hparams, randomization, timing
 from .learning.budget import RULE, budget_arg
 from .learning.defaults import describe
-from .learning.fingerprint import check_fingerprint
+from .learning.fingerprint import check_fingerprint, task_fingerprint
 from .learning.hparams import ALGOS, load_hyperparams
-from .learning.rundir import check_earlier_run, latest_checkpoint, run_dir_of
+from .learning.rundir import (
+    check_earlier_run,
+    latest_checkpoint,
+    run_dir_of,
+    solved_run,
+)
 from .learning.timing import TIME_FILE as TIME_FILE
 from .learning.timing import record_segment
 from .scoring import learned
@@ -76,11 +85,20 @@ from .train import TrainingInterrupted, train
 
 
 def train_timed(
-    env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None, seconds=None
-):
+    env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None,
+    seconds=None, until_solved=False,
+):  # fmt: skip
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
-    result and the run's `Training` record, whose time is summed over resumed segments.
-    seconds: a wall-clock budget instead (agents.learning.budget; `budget` is then not used)."""
+    model's path and the run's `Training` record, whose time is summed over resumed segments.
+    until_solved: stop once solved, before `budget` steps (agents.train). seconds: a
+    wall-clock budget instead (agents.learning.budget; `budget` is then not used). A run
+    that stops when solved and was solved is reused unless `fresh` (`solved_before`); one of
+    a time budget that was not trains afresh (a clock cannot be resumed)."""
+    if (seconds or until_solved) and not fresh:
+        reused = solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, budget)
+        if reused is not None:
+            return run_dir / "model.zip", reused
+    fresh = fresh or bool(seconds)
     found = None if fresh else latest_checkpoint(run_dir / "checkpoints")
     start = found[0] if found else 0
     try:
@@ -96,15 +114,36 @@ def train_timed(
             hyperparams=hyperparams,
             randomize=randomize,
             budget=seconds,
-            eval_episodes=20 if seconds else 10,
+            until_solved=until_solved,
+            eval_episodes=20 if seconds or until_solved else 10,
         )
     except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
         record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
         raise
-    seconds, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
+    train_s, timed = record_segment(run_dir, start, result.timesteps, result.wall_s)
     now = result.wall_s if result.timesteps > start else 0.0
     shown = result.timesteps if seconds else budget  # a time budget: the steps it took
-    return result, Training(algo, shown, result.timesteps, seconds, timed, "", now)
+    return result.model_path, Training(algo, shown, result.timesteps, train_s, timed, "", now)
+
+
+def solved_before(
+    env_id, algo, seed, run_dir, hyperparams, randomize, seconds, steps
+) -> Training | None:
+    """The record of a solved run of these settings in `run_dir` (a time budget of
+    `seconds`, else `steps` until solved), which the check reuses instead of training
+    again (`rundir.solved_run`), else None."""
+    hp = load_hyperparams(algo, env_id, hyperparams)
+    if seconds:  # as a budget run trains and records them (agents.train)
+        hp, limit = budgets.constant_schedules(hp), {"budget_s": float(seconds)}
+    else:
+        limit = {"n_timesteps": int(steps), "until_solved": True}
+    if randomize is not None:
+        hp["randomize"] = randomize
+    expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, **limit)
+    if not solved_run(run_dir, {**expected, "task": task_fingerprint(env_id)}):
+        return None
+    train_s, trained = timing.recorded(run_dir)
+    return Training(algo, trained if seconds else int(steps), trained, train_s, trained, "")
 
 
 def check_env(
@@ -151,28 +190,29 @@ def check_env(
         note = heuristic.description if name == "heuristic" else ""
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
-    budget = budget_of(env_id, algo, timesteps, hyperparams)
-    tag = randomization.tag(randomize) + params.tag(env_id)
-    run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
-    if seconds:
-        run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
-    length = f"until solved, at most {seconds:g} s" if seconds else f"for {budget:,} steps"
+    run_dir, budget, limit, stops = run_plan(
+        out, env_id, algo, seed, timesteps, seconds, hyperparams, randomize
+    )
+    length = f"until solved, at most {limit}" if stops else f"for {limit}"
     log(f"  training {algo.upper()} {length} in {run_dir} ...")
     lqr = not any(r.env_id == env_id and r.agent == "lqr" for r in refused)
     settings = describe(load_hyperparams(algo, env_id, hyperparams), lqr)
     log(f"  ({settings}; agents.learning.defaults)")
-    result, training = train_timed(
-        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds
-    )
+    model, training = train_timed(
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds,
+        stops and not seconds,
+    )  # fmt: skip
+    if not training.now_s:
+        log("  reused the run on disk (--fresh trains afresh)")
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
     training = replace(training, run_dir=link)
-    model, score = result.model_path, programs.evaluate
+    score = programs.evaluate
     stats, eval_s, warm_s = learned.warm_evaluate(score, env_id, str(model), episodes, seed)
     alone, lqr_note, _, _ = learned.alone_rows(programs, env_id, algo, model, episodes, seed, log)
     notes = (
         randomization.describe(randomize) if randomize else "",
         lqr_note,
-        learned.solved_note(run_dir, seconds),
+        learned.solved_note(run_dir, limit if stops else None),
         learned.resumed_note(run_dir),
     )
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
@@ -185,6 +225,19 @@ def check_env(
     if diagnoses is not None:
         diagnoses.extend(lines)
     return rows + alone
+
+
+def run_plan(out, env_id, algo, seed, timesteps, seconds, hyperparams, randomize):
+    """(run directory, step budget, the limit in words, whether training stops when
+    solved) of an agent: a time budget's run is named by its seconds, a step budget's by
+    its steps; without `timesteps` asked for, the declared steps are a cap."""
+    budget = budget_of(env_id, algo, timesteps, hyperparams)
+    tag = randomization.tag(randomize) + params.tag(env_id)
+    if seconds:
+        run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
+        return run_dir, budget, f"{seconds:g} s", True
+    run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
+    return run_dir, budget, f"{budget:,} steps", timesteps is None
 
 
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
@@ -243,9 +296,10 @@ def run_check(
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
     the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
     seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
-    always a fresh run: a clock cannot be resumed). With neither `timesteps` nor `seconds`,
-    an env whose training budget nobody declares trains so within `declared.DEFAULT_SECONDS`
-    (`seconds_of`), the others for their declared steps."""
+    a solved run is reused, any other trains afresh: a clock cannot be resumed). timesteps:
+    train each for this many steps, to the end. With neither, an env whose training budget
+    nobody declares trains until solved within `declared.DEFAULT_SECONDS` (`seconds_of`),
+    the others until solved within their declared steps."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -254,7 +308,7 @@ def run_check(
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
     timed = {e: declared.seconds_of(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
-    if not fresh:  # a budget of time always trains afresh: a clock cannot be resumed
+    if not fresh:  # runs of a budget of time are reused only when solved, with these settings
         stepped = [e for e in env_ids if not timed[e]]
         check_runs_on_disk(stepped, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
@@ -278,7 +332,7 @@ def run_check(
             seed,
             out,
             timesteps,
-            fresh or bool(timed[env_id]),
+            fresh,
             progress,
             log,
             hyperparams,
@@ -335,15 +389,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--timesteps",
         type=positive_int,
-        help="training budget per env (default: the YAML's n_timesteps); see --fresh for "
-        "what a budget other than a run on disk does",
+        help="train every env for this many steps, to the end (default: until solved, at "
+        "most the declared n_timesteps); see --fresh for what a budget other than a run on "
+        "disk does",
     )
     parser.add_argument(
         "--budget",
         type=budget_arg,
         help=f"train each agent until solved ({RULE.replace('%', '%%')}) "
-        "within this wall-clock time (600, 90s, 10m), always afresh, keeping the model that met "
-        "it (else the best evaluated); "
+        "within this wall-clock time (600, 90s, 10m), keeping the model that met it (else "
+        "the best evaluated; a re-run reuses a solved run and trains any other afresh); "
         "instead of --timesteps (agents.learning.budget); without either, a system whose task "
         "and hyperparameters declare no n_timesteps trains so for 10m",
     )
@@ -361,7 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="retrain the runs of this budget from scratch. Without it, each budget trains "
         "in a run directory of its own (--out/train/ENV/ALGO_seedS_Nsteps): a run of the "
-        "same budget is resumed from its checkpoint (or reused when finished), another "
+        "same budget is resumed from its checkpoint (or reused when finished or solved), another "
         "budget starts a fresh run and keeps the earlier one, and a run of the same budget "
         "with other hyperparameters is refused with a message",
     )

@@ -244,6 +244,20 @@ def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
         )
 
 
+def solved_run(run_dir: Path, expected: dict) -> bool:
+    """Whether `run_dir` holds a run that stopped when solved (solved.json, the confirmed
+    model kept as model.zip) and trained what `expected` says: each of its entries (env_id,
+    algo, seed, hyperparams, task fingerprint, its budget of time or steps) equal to the
+    run's config.yml. `agents.check` reuses such a run: resumed, it would train on past its
+    solution, and its stop at success is on the step schedule, where a fresh run of the same
+    seed on the same machine stops again."""
+    if not all((run_dir / name).is_file() for name in ("config.yml", "model.zip", "solved.json")):
+        return False
+    then = read_config(run_dir)
+    now = yaml.safe_load(yaml.safe_dump(expected))  # as config.yml stores it
+    return all(then.get(key) == value for key, value in now.items())
+
+
 # ---- a saved run, read back ----------------------------------------------------------------
 def read_config(run_dir: Path) -> dict:
     """A run's config.yml ({} when there is none), checked: a mapping whose env_id and algo

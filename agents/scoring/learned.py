@@ -39,25 +39,26 @@ def budget_run_dir(out: Path, env_id: str, algo: str, seed: int, seconds: float,
     return Path(out) / "train" / env_slug(env_id) / f"{algo}_seed{seed}_{seconds:g}s{tag}"
 
 
-def solved_note(run_dir: Path, seconds: float | None) -> str:
-    """The verdict of a time-budget run, read from its record (solved.json, and
+def solved_note(run_dir: Path, limit: str | None) -> str:
+    """The verdict of a run that stops when solved, read from its record (solved.json, and
     confirmations.json for the candidates fresh starts did not confirm): 'solved after S s,
-    N steps, confirmed on K of M fresh starts (R %, 95 % [L, H])', or 'not solved in B s'
-    with the best candidate's confirmation. The one source of the verdict: the report's
-    note and the learning benchmark read the same files."""
+    N steps, confirmed on K of M fresh starts (R %, 95 % [L, H])', or 'not solved in LIMIT'
+    (its budget: '600 s', '400,000 steps') with the best candidate's confirmation; '' where
+    `limit` is None (a run that trains its steps to the end). The one source of the
+    verdict: the report's note and the learning benchmark read the same files."""
     import json
 
-    if seconds is None:
+    if limit is None:
         return ""
     path = Path(run_dir) / "solved.json"
     if not path.exists():
         tried = Path(run_dir) / "confirmations.json"
         candidates = json.loads(tried.read_text()) if tried.exists() else []
         if not candidates:
-            return f"not solved in {seconds:g} s (best evaluation kept)"
+            return f"not solved in {limit} (best evaluation kept)"
         best = max(candidates, key=lambda c: c["rate"])
         return (
-            f"not solved in {seconds:g} s: {len(candidates)} candidates met the rule, "
+            f"not solved in {limit}: {len(candidates)} candidates met the rule, "
             f"none confirmed (the best {confirmed_text(best)}; kept)"
         )
     solved = json.loads(path.read_text())

@@ -10,9 +10,13 @@ import pytest
 import yaml
 
 import envs
+from agents import check as check_mod
 from agents import train as train_mod
 from agents.check import TIME_FILE, build_parser, main, record_segment, run_check
 from agents.common import UserError
+from agents.learning import budget as budgets
+from agents.learning import confirm as confirmation
+from agents.learning.rundir import solved_run
 
 ARM = next(env_id for env_id in envs.ENV_IDS if "/TwoLinkArm-" in env_id)
 ARM_DIR = "train/" + ARM.replace("/", "-")
@@ -198,3 +202,54 @@ def test_each_budget_reports_in_a_directory_of_its_own(tmp_path):
     assert "another budget keeps the earlier report" in " ".join(
         build_parser().format_help().split()
     )
+
+
+# ---- a budget of time: a solved run is reused, any other trains afresh ---------------------
+BEAD = next(env_id for env_id in envs.ENV_IDS if "/BeadOnRod-" in env_id)
+
+
+def _solved_run(run_dir, **config):
+    """A run directory as a solved budget run leaves it (its files' contents aside)."""
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.yml").write_text(yaml.safe_dump(config))
+    (run_dir / "model.zip").write_bytes(b"")
+    (run_dir / "solved.json").write_text("{}")
+    return run_dir
+
+
+def test_a_solved_run_is_reused_only_with_the_settings_it_trained(tmp_path):
+    config = dict(env_id=BEAD, algo="ppo", seed=0, budget_s=600.0, hyperparams={"gamma": 0.98})
+    run_dir = _solved_run(tmp_path / "run", **config, n_timesteps=10**9, task="abc")
+    assert solved_run(run_dir, {**config, "task": "abc"})
+    for other in ({"seed": 1}, {"budget_s": 300.0}, {"hyperparams": {"gamma": 0.99}}):
+        assert not solved_run(run_dir, {**config, "task": "abc", **other}), other
+    assert not solved_run(run_dir, {**config, "task": "another declaration"})
+    (run_dir / "solved.json").unlink()  # it ran out of time: trained afresh
+    assert not solved_run(run_dir, {**config, "task": "abc"})
+
+
+@pytest.mark.slow  # a run to its (forced) solution, about 3 s each
+@pytest.mark.parametrize("limit", [{"seconds": 600}, {"until_solved": True}])
+def test_the_check_reuses_a_solved_run_and_fresh_retrains_it(tmp_path, monkeypatch, limit):
+    monkeypatch.setattr(budgets, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
+    monkeypatch.setattr(confirmation, "RATE", 0.0)  # and any confirmation confirms it
+    monkeypatch.setattr(confirmation, "EPISODES", 4)
+    run_dir = tmp_path / "run"
+    steps = {"timesteps": None} if "seconds" in limit else {"timesteps": 10_000}
+    kw = dict(eval_episodes=2, n_envs=1, progress=False, eval_freq=512, budget=limit.get("seconds"))
+    trained = train_mod.train(
+        BEAD, run_dir=run_dir, until_solved="until_solved" in limit, **steps, **kw
+    )
+    assert trained.timesteps == 1536  # solved at the third evaluation, before 10,000 steps
+    record_segment(run_dir, 0, trained.timesteps, trained.wall_s)  # as train_timed does
+    called = []
+    monkeypatch.setattr(check_mod, "train", lambda *a, **k: called.append(k) or trained)
+    args = (BEAD, "ppo", 10_000, 0, run_dir, False, False, None, None)
+    model, training = check_mod.train_timed(*args, **limit)
+    assert called == [] and model == run_dir / "model.zip"
+    assert (training.timesteps, training.now_s) == (trained.timesteps, 0.0)
+    check_mod.train_timed(*args[:5], True, *args[6:], **limit)  # --fresh
+    assert called[-1]["overwrite"] and not called[-1]["resume"]
+    other = {"seconds": 300} if "seconds" in limit else {"until_solved": False}
+    check_mod.train_timed(*args, **other)  # not what it was solved in: trained again
+    assert len(called) == 2
