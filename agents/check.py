@@ -17,12 +17,12 @@ refused unless --fresh retrains it. Training time is stored in the run directory
 and loading (an untimed first episode per agent).
 
 Every agent trains until solved (`agents.learning.budget`'s rule, confirmed on fresh
-starts), at most its declared n_timesteps (the task's hyperparameters, the packaged YAML's
-entry or a --hyperparams file; the built-in tasks declare theirs); a system that declares
-none (a user's new system) at most 10 minutes (`agents.learning.declared`, as `--budget
-10m`). A solved run is reused by a re-run (`rundir.solved_run`); one of a time budget that
-was not trains afresh (a clock cannot be resumed). `--budget` sets every env's time;
-`--timesteps N` trains every env for N steps, to the end.
+starts), at most 10 minutes and, where declared, at most its n_timesteps (the task's
+hyperparameters, the packaged YAML's entry or a --hyperparams file; the built-in tasks
+declare theirs): `agents.learning.declared`. A re-run reuses a solved run
+(`rundir.solved_run`) and trains any other afresh (a clock cannot be resumed). `--budget`
+sets every agent's time, without a step cap; `--timesteps N` trains every agent N steps,
+to the end, and a re-run resumes or reuses those runs.
 """
 
 from __future__ import annotations
@@ -86,16 +86,15 @@ from .train import TrainingInterrupted, train
 
 def train_timed(
     env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None,
-    seconds=None, until_solved=False,
+    seconds=None, cap=None,
 ):  # fmt: skip
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
     model's path and the run's `Training` record, whose time is summed over resumed segments.
-    until_solved: stop once solved, before `budget` steps (agents.train). seconds: a
-    wall-clock budget instead (agents.learning.budget; `budget` is then not used). A run
-    that stops when solved and was solved is reused unless `fresh` (`solved_before`); one of
-    a time budget that was not trains afresh (a clock cannot be resumed)."""
-    if (seconds or until_solved) and not fresh:
-        reused = solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, budget)
+    seconds: a wall-clock budget instead (agents.learning.budget; `budget` is then not used),
+    capped at `cap` steps if given: a solved run of it is reused unless `fresh`
+    (`solved_before`), any other trains afresh (a clock cannot be resumed)."""
+    if seconds and not fresh:
+        reused = solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap)
         if reused is not None:
             return run_dir / "model.zip", reused
     fresh = fresh or bool(seconds)
@@ -105,7 +104,7 @@ def train_timed(
         result = train(
             env_id,
             algo,
-            timesteps=None if seconds else budget,
+            timesteps=cap if seconds else budget,
             seed=seed,
             run_dir=run_dir,
             resume=not fresh,
@@ -114,8 +113,7 @@ def train_timed(
             hyperparams=hyperparams,
             randomize=randomize,
             budget=seconds,
-            until_solved=until_solved,
-            eval_episodes=20 if seconds or until_solved else 10,
+            eval_episodes=20 if seconds else 10,
         )
     except TrainingInterrupted as stopped:  # keep the time of what the checkpoint holds
         record_segment(run_dir, start, stopped.result.timesteps, stopped.result.wall_s)
@@ -126,24 +124,21 @@ def train_timed(
     return result.model_path, Training(algo, shown, result.timesteps, train_s, timed, "", now)
 
 
-def solved_before(
-    env_id, algo, seed, run_dir, hyperparams, randomize, seconds, steps
-) -> Training | None:
-    """The record of a solved run of these settings in `run_dir` (a time budget of
-    `seconds`, else `steps` until solved), which the check reuses instead of training
-    again (`rundir.solved_run`), else None."""
+def solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap):
+    """The `Training` record of a solved run in `run_dir` of a time budget of `seconds`
+    capped at `cap` steps (or none) with these settings, which the check reuses instead of
+    training again (`rundir.solved_run`), else None."""
     hp = load_hyperparams(algo, env_id, hyperparams)
-    if seconds:  # as a budget run trains and records them (agents.train)
-        hp, limit = budgets.constant_schedules(hp), {"budget_s": float(seconds)}
-    else:
-        limit = {"n_timesteps": int(steps), "until_solved": True}
+    if cap is None:  # the run's schedules, as agents.train records them
+        hp = budgets.constant_schedules(hp)
     if randomize is not None:
         hp["randomize"] = randomize
-    expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, **limit)
+    expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, budget_s=float(seconds))
+    expected["n_timesteps"] = budgets.BUDGET_STEPS_CAP if cap is None else int(cap)
     if not solved_run(run_dir, {**expected, "task": task_fingerprint(env_id)}):
         return None
     train_s, trained = timing.recorded(run_dir)
-    return Training(algo, trained if seconds else int(steps), trained, train_s, trained, "")
+    return Training(algo, trained, trained, train_s, trained, "")
 
 
 def check_env(
@@ -162,12 +157,13 @@ def check_env(
     seconds: float | None = None,
     diagnoses: list | None = None,
     refused: list | None = None,
+    cap: int | None = None,
 ) -> list[Row]:
     """Every baseline, LQR and the trained agent on one environment (the run directory
     named in the rows relative to `report`, the report's directory; default `out`). The
     agent trains with `randomize` (agents.learning.randomization) if given; every agent is scored
-    on the nominal env. seconds: a wall-clock budget (agents.learning.budget) instead of steps;
-    diagnoses: a list the lines of a failed agent's diagnosis are appended to; refused: a
+    on the nominal env. seconds: a wall-clock budget (agents.learning.budget) instead of steps,
+    capped at `cap` steps if given; diagnoses: a list the lines of a failed agent's diagnosis are appended to; refused: a
     list each agent not run is appended to (`Refused`, with its one-line reason)."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
@@ -190,18 +186,17 @@ def check_env(
         note = heuristic.description if name == "heuristic" else ""
         rows.append(Row(env_id, name, stats, eval_s, note, warmup_s=warm_s))
         log(f"  {name:>9}: {stats.summary()}")
-    run_dir, budget, limit, stops = run_plan(
-        out, env_id, algo, seed, timesteps, seconds, hyperparams, randomize
+    run_dir, budget, limit = run_plan(
+        out, env_id, algo, seed, timesteps, seconds, cap, hyperparams, randomize
     )
-    length = f"until solved, at most {limit}" if stops else f"for {limit}"
+    length = f"until solved, at most {limit}" if seconds else f"for {limit}"
     log(f"  training {algo.upper()} {length} in {run_dir} ...")
     lqr = not any(r.env_id == env_id and r.agent == "lqr" for r in refused)
     settings = describe(load_hyperparams(algo, env_id, hyperparams), lqr)
     log(f"  ({settings}; agents.learning.defaults)")
     model, training = train_timed(
-        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds,
-        stops and not seconds,
-    )  # fmt: skip
+        env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize, seconds, cap
+    )
     if not training.now_s:
         log("  reused the run on disk (--fresh trains afresh)")
     link = Path(os.path.relpath(run_dir, report or out)).as_posix()
@@ -212,7 +207,7 @@ def check_env(
     notes = (
         randomization.describe(randomize) if randomize else "",
         lqr_note,
-        learned.solved_note(run_dir, limit if stops else None),
+        learned.solved_note(run_dir, limit if seconds else None),
         learned.resumed_note(run_dir),
     )
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))
@@ -227,17 +222,16 @@ def check_env(
     return rows + alone
 
 
-def run_plan(out, env_id, algo, seed, timesteps, seconds, hyperparams, randomize):
-    """(run directory, step budget, the limit in words, whether training stops when
-    solved) of an agent: a time budget's run is named by its seconds, a step budget's by
-    its steps; without `timesteps` asked for, the declared steps are a cap."""
-    budget = budget_of(env_id, algo, timesteps, hyperparams)
+def run_plan(out, env_id, algo, seed, timesteps, seconds, cap, hyperparams, randomize):
+    """(run directory, step budget, the limit in words) of an agent: a time budget's run is
+    named by its seconds ("600 s", or "600 s or 3,000,000 steps" where `cap` steps cap it),
+    a step budget's by its steps."""
+    budget = budget_of(env_id, algo, timesteps, hyperparams) if cap is None else cap
     tag = randomization.tag(randomize) + params.tag(env_id)
     if seconds:
         run_dir = learned.budget_run_dir(out, env_id, algo, seed, seconds, tag)
-        return run_dir, budget, f"{seconds:g} s", True
-    run_dir = run_dir_of(out, env_id, algo, seed, budget, tag)
-    return run_dir, budget, f"{budget:,} steps", timesteps is None
+        return run_dir, budget, f"{seconds:g} s" + (f" or {cap:,} steps" if cap else "")
+    return run_dir_of(out, env_id, algo, seed, budget, tag), budget, f"{budget:,} steps"
 
 
 def budget_of(env_id: str, algo: str, timesteps: int | None, hyperparams) -> int:
@@ -297,9 +291,9 @@ def run_check(
     the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
     seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
     a solved run is reused, any other trains afresh: a clock cannot be resumed). timesteps:
-    train each for this many steps, to the end. With neither, an env whose training budget
-    nobody declares trains until solved within `declared.DEFAULT_SECONDS` (`seconds_of`),
-    the others until solved within their declared steps."""
+    train each for this many steps, to the end. With neither, each trains until solved
+    within `declared.DEFAULT_SECONDS` and the steps its task declares, if it does
+    (`declared.steps_cap`)."""
     given = list(env_ids or [])
     env_ids = given or list(register_envs())
     if not env_ids:
@@ -307,10 +301,10 @@ def run_check(
     env_ids = [check_env_id(e, lagrange=True) for e in env_ids]
     out = Path(out)
     report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
-    timed = {e: declared.seconds_of(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
-    if not fresh:  # runs of a budget of time are reused only when solved, with these settings
-        stepped = [e for e in env_ids if not timed[e]]
-        check_runs_on_disk(stepped, algo, seed, out, timesteps, hyperparams, randomize)
+    timed = declared.seconds_of(timesteps, seconds)
+    caps = {e: declared.steps_cap(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
+    if not (fresh or timed):  # a time budget's runs are reused only when solved, as they were
+        check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     print(
         f"The report goes to {report}/ (trained runs: {out / 'train'}/). In the lines below, "
@@ -338,9 +332,10 @@ def run_check(
             hyperparams,
             report,
             randomize,
-            timed[env_id],
+            timed,
             diagnoses,
             refused,
+            caps[env_id],
         )
     total = time.perf_counter() - start
     diagnosis = "".join(f"- {line}\n" for line in diagnoses)
@@ -390,8 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--timesteps",
         type=positive_int,
         help="train every env for this many steps, to the end (default: until solved, at "
-        "most the declared n_timesteps); see --fresh for what a budget other than a run on "
-        "disk does",
+        "most 10 minutes and the declared n_timesteps); see --fresh for what a budget other "
+        "than a run on disk does",
     )
     parser.add_argument(
         "--budget",
@@ -399,8 +394,8 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"train each agent until solved ({RULE.replace('%', '%%')}) "
         "within this wall-clock time (600, 90s, 10m), keeping the model that met it (else "
         "the best evaluated; a re-run reuses a solved run and trains any other afresh); "
-        "instead of --timesteps (agents.learning.budget); without either, a system whose task "
-        "and hyperparameters declare no n_timesteps trains so for 10m",
+        "instead of --timesteps (agents.learning.budget); without either, each trains so "
+        "for 10m, at most its declared n_timesteps",
     )
     parser.add_argument(
         "--out",

@@ -112,7 +112,6 @@ def train(
     allow_missing_buffer: bool = False,
     randomize: dict | None = None,
     budget: float | None = None,
-    until_solved: bool = False,
 ) -> TrainResult:
     """Train `algo` on `env_id`; return where the model is and how it evaluated.
 
@@ -129,15 +128,12 @@ def train(
     the YAML's; a resumed run without it keeps the one its config.yml records. budget:
     wall-clock seconds; train until solved or out of time (agents.learning.budget), `timesteps`
     then caps the steps (default: no cap; a "lin_X" learning rate then decays over the
-    budget's time, agents.learning.budget.OverBudget). until_solved: stop once solved by the
-    budget's rule (a budget implies it), before the steps are done; the model kept is then
-    the confirmed one, else the best evaluated, as in a budget run.
+    budget's time, agents.learning.budget.OverBudget).
 
     Raises UserError for problems with the arguments, the hyperparameters or the run
     directory (before anything is written), and TrainingInterrupted after saving when
     SIGINT or SIGTERM stopped the run."""
     env_id = check_env_id(env_id)
-    until_solved = until_solved or budget is not None
     hp, total, n_envs, decay = _checked_arguments(
         env_id, algo, timesteps, n_envs, eval_episodes, vectorization, hyperparams, budget
     )
@@ -148,20 +144,18 @@ def train(
         remove_stale_temporaries(run_dir)
         config = _config(env_id, algo, seed, total, n_envs, vectorization, hyperparams, hp)
         config.update({"budget_s": float(budget)} if budget is not None else {})
-        config.update({"until_solved": True} if until_solved and budget is None else {})
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite, config)
         config.update(params.record(env_id, env_options))  # randomize's ranges, --params
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
         options = dict(
             eval_freq=eval_freq
-            or budgets.budget_eval_freq(total, hp["n_timesteps"], until_solved, off_policy(algo)),
+            or budgets.budget_eval_freq(total, hp["n_timesteps"], budget, off_policy(algo)),
             eval_episodes=eval_episodes,
             checkpoint_freq=checkpoint_freq or max(total // 5, 1),
             progress=progress,
             verbose=verbose,
             allow_missing_buffer=allow_missing_buffer,
             budget=budget,
-            until_solved=until_solved,
             decay=decay,
         )
         return _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **options)
@@ -240,7 +234,7 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
         if o["decay"] is not None:  # the rate decays over the budget's time
             model.lr_schedule = budgets.OverBudget(o["decay"], clock)
         solved = None
-        if o["until_solved"]:
+        if o["budget"]:
             solved = stops.solved_stop(
                 run_dir, clock, lambda model, k: fresh.confirm(model, env_id, hp, k)
             )
@@ -314,13 +308,6 @@ def build_parser() -> argparse.ArgumentParser:
         f"holds ({budgets.RULE.replace('%', '%%')}) or the time is spent; keeps the model that "
         "met it, else the best evaluated (agents.learning.budget). Not repeatable: use "
         "--timesteps for that",
-    )
-    parser.add_argument(
-        "--until-solved",
-        action="store_true",
-        help="stop before the steps are done once the evaluated success holds (the rule of "
-        "--budget), keeping the model that met it, else the best evaluated; as agents.check "
-        "trains",
     )
     parser.add_argument("--seed", type=seed_int, default=0)
     parser.add_argument(
@@ -399,7 +386,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.run_dir,
                 args.resume,
                 args.eval_freq,
-                args.eval_episodes or (20 if args.budget or args.until_solved else 10),
+                args.eval_episodes or (20 if args.budget else 10),
                 args.checkpoint_freq,
                 args.vectorization,
                 progress=not args.no_progress,
@@ -409,7 +396,6 @@ def main(argv: list[str] | None = None) -> int:
                 allow_missing_buffer=args.allow_missing_buffer,
                 randomize=randomize,
                 budget=args.budget,
-                until_solved=args.until_solved,
             )
     except UserError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)

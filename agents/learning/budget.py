@@ -17,10 +17,6 @@ one that runs out of time evaluates the final model too (unless its weights just
 and keeps the best one. The run's model.zip is the kept one (`best/` holds it too), and
 `solved.json` records the seconds and env steps to success.
 
-The same rule and confirmation stop a run with a step budget where it asks for them
-(`agents.train(..., until_solved=True)`, which `agents.check` uses for the steps a task
-declares): its clock has no end, and it evaluates as a budget run does.
-
 What the budget covers: the run from the start of training (the envs and the model made,
 matplotlib imported) to the kept model: the training steps and updates, the evaluations,
 the final evaluation, the checkpoint and every save. The run's `wall_s` (the report's
@@ -102,18 +98,17 @@ def budget_arg(text: str) -> float:
 
 
 def budget_eval_freq(
-    total: int, declared: int, until_solved: bool, off_policy: bool = False
+    total: int, declared: int, budget: float | None, off_policy: bool = False
 ) -> int:
-    """Env steps between evaluations: a tenth of the run (at least 2,000); in a run that
-    stops when solved (a time budget, or `agents.train`'s until_solved), a thirtieth of the
-    declared n_timesteps, so that the rule's three evaluations in a row take a tenth of
-    them (a tenth of the acrobot's 3M steps would put its first evaluation past a 300 s
-    budget here), at least 10,000 for an on-policy learner (PPO trains 3-6k steps a second
-    here: an evaluation of 20 episodes every 2-3 s of training would take as long as the
-    training) and 1,000 for an off-policy one (50-100 steps a second here, one gradient
-    step per env step: 10,000 steps would be 2-3 minutes between evaluations, most of a
-    short budget)."""
-    if not until_solved:
+    """Env steps between evaluations: a tenth of the run (at least 2,000); with a time
+    budget, a thirtieth of the declared n_timesteps, so that the stop rule's three
+    evaluations in a row take a tenth of them (a tenth of the acrobot's 3M steps would put
+    its first evaluation past a 300 s budget here), at least 10,000 for an on-policy
+    learner (PPO trains 3-6k steps a second here: an evaluation of 20 episodes every 2-3 s
+    of training would take as long as the training) and 1,000 for an off-policy one
+    (50-100 steps a second here, one gradient step per env step: 10,000 steps would be 2-3
+    minutes between evaluations, most of a short budget)."""
+    if budget is None:
         return max(min(total, declared) // 10, 2000)
     return max(declared // 30, 1_000 if off_policy else 10_000)
 

@@ -1,7 +1,8 @@
-"""The training budget of a run whose command names none: the steps its task, the packaged
-YAML's entry or the user's file declares, or else until solved within `DEFAULT_SECONDS`
-(`agents.learning.budget`), so that a new system trains to a policy with the plain
-`python -m agents.check MODULE:ID`."""
+"""The training budget of a run whose command names none: until solved within
+`DEFAULT_SECONDS` (`agents.learning.budget`), and within the steps its task, the packaged
+YAML's entry or the user's file declares where one does, so that the plain `python -m
+agents.check` ends, for a built-in or a new system alike, at the confirmed verdict or
+within ten minutes."""
 
 from __future__ import annotations
 
@@ -11,19 +12,28 @@ from ..common import UserError, task_of
 from . import hparams
 
 DEFAULT_SECONDS = 600.0
-"""The wall-clock budget of a system that declares no training budget of its own: with
-neither --timesteps nor --budget, its agent trains until solved, at most 10 minutes."""
+"""The wall-clock budget of an agent whose command names none (neither --timesteps nor
+--budget): it trains until solved, at most 10 minutes (and its declared steps)."""
 
 
-def seconds_of(env_id, algo, timesteps, seconds, hyperparams) -> float | None:
-    """The wall-clock budget `env_id`'s agent trains within: `seconds` if given; else
-    `DEFAULT_SECONDS` where no step count is asked for or declared (the task's
-    hyperparameters, the YAML's entry for the env, a --hyperparams file); else None (the
-    declared steps)."""
+def seconds_of(timesteps, seconds) -> float | None:
+    """The wall-clock budget an agent trains within: `seconds` if given; None where a step
+    count is asked for (--timesteps: the steps, to the end); else `DEFAULT_SECONDS`."""
     if seconds or timesteps is not None:
         return seconds or None
+    return DEFAULT_SECONDS
+
+
+def steps_cap(env_id, algo, timesteps, seconds, hyperparams) -> int | None:
+    """The steps that cap a run of the default time budget: the n_timesteps declared for
+    `env_id` (the task's hyperparameters, the YAML's entry for the env, a --hyperparams
+    file), or None where none is declared or the command names a budget of its own."""
+    if seconds or timesteps is not None:
+        return None
     name = algo or hparams.check_algo(env_id)
-    return None if declares_steps(name, env_id, hyperparams) else DEFAULT_SECONDS
+    if not declares_steps(name, env_id, hyperparams):
+        return None
+    return int(hparams.load(name, env_id, hyperparams)["n_timesteps"])
 
 
 def declares_steps(algo: str, env_id: str, path: str | Path | None = None) -> bool:

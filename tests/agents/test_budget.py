@@ -10,7 +10,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import yaml
 
 import envs
 from agents.learning import budget, solved
@@ -242,19 +241,6 @@ def test_cli_takes_a_budget_and_says_so(tmp_path, capsys):
     assert "expected a time such as 600, 90s, 10m or 1.5h" in capsys.readouterr().err
 
 
-@pytest.mark.slow  # a run to its (forced) solution, about 3 s
-def test_until_solved_stops_a_step_budget_at_the_confirmed_model(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(budget, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
-    monkeypatch.setattr(confirmation, "RATE", 0.0)  # and any confirmation confirms it
-    monkeypatch.setattr(confirmation, "EPISODES", 4)
-    assert main([BEAD, "--timesteps", "10000", "--until-solved", "--run-dir", str(tmp_path),
-                 "--n-envs", "1", "--eval-freq", "512", "--no-progress"]) == 0  # fmt: skip
-    assert json.loads((tmp_path / "solved.json").read_text())["timesteps"] == 1536
-    config = yaml.safe_load((tmp_path / "config.yml").read_text())
-    assert config["until_solved"] and config["n_timesteps"] == 10_000
-    assert "Solved after" in capsys.readouterr().out
-
-
 def test_a_budget_run_evaluates_an_off_policy_learner_ten_times_as_often():
     from agents.learning.hparams import off_policy
 
@@ -263,10 +249,10 @@ def test_a_budget_run_evaluates_an_off_policy_learner_ten_times_as_often():
     ]  # fmt: skip
     # the off-policy YAMLs' 30,000 steps: every 1,000 steps (10-20 s of SAC here), where
     # PPO's floor of 10,000 steps would leave two minutes between evaluations
-    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, True, True) == 1_000
-    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, True, False) == 10_000
-    assert budget.budget_eval_freq(3_000_000, 3_000_000, True, False) == 100_000  # until solved
-    assert budget.budget_eval_freq(50_000, 30_000, False, True) == 3_000  # to the end: a tenth
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, True) == 1_000
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, False) == 10_000
+    assert budget.budget_eval_freq(3_000_000, 3_000_000, 600.0, False) == 100_000  # a step cap
+    assert budget.budget_eval_freq(50_000, 30_000, None, True) == 3_000  # no budget: a tenth
 
 
 def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):

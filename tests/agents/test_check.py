@@ -229,27 +229,24 @@ def test_a_solved_run_is_reused_only_with_the_settings_it_trained(tmp_path):
 
 
 @pytest.mark.slow  # a run to its (forced) solution, about 3 s each
-@pytest.mark.parametrize("limit", [{"seconds": 600}, {"until_solved": True}])
-def test_the_check_reuses_a_solved_run_and_fresh_retrains_it(tmp_path, monkeypatch, limit):
+@pytest.mark.parametrize("cap", [None, 10_000])  # a time budget, without and with a step cap
+def test_the_check_reuses_a_solved_run_and_fresh_retrains_it(tmp_path, monkeypatch, cap):
     monkeypatch.setattr(budgets, "SOLVED_RATE", 0.0)  # any evaluation counts as solved
     monkeypatch.setattr(confirmation, "RATE", 0.0)  # and any confirmation confirms it
     monkeypatch.setattr(confirmation, "EPISODES", 4)
     run_dir = tmp_path / "run"
-    steps = {"timesteps": None} if "seconds" in limit else {"timesteps": 10_000}
-    kw = dict(eval_episodes=2, n_envs=1, progress=False, eval_freq=512, budget=limit.get("seconds"))
-    trained = train_mod.train(
-        BEAD, run_dir=run_dir, until_solved="until_solved" in limit, **steps, **kw
-    )
-    assert trained.timesteps == 1536  # solved at the third evaluation, before 10,000 steps
+    kw = dict(eval_episodes=2, progress=False, eval_freq=512)  # the YAML's copies, as check
+    trained = train_mod.train(BEAD, run_dir=run_dir, timesteps=cap, budget=600, **kw)
+    assert trained.timesteps == 1536  # solved at the third evaluation
     record_segment(run_dir, 0, trained.timesteps, trained.wall_s)  # as train_timed does
     called = []
     monkeypatch.setattr(check_mod, "train", lambda *a, **k: called.append(k) or trained)
-    args = (BEAD, "ppo", 10_000, 0, run_dir, False, False, None, None)
-    model, training = check_mod.train_timed(*args, **limit)
+    args = (BEAD, "ppo", 200_000, 0, run_dir, False, False, None, None)
+    model, training = check_mod.train_timed(*args, seconds=600, cap=cap)
     assert called == [] and model == run_dir / "model.zip"
     assert (training.timesteps, training.now_s) == (trained.timesteps, 0.0)
-    check_mod.train_timed(*args[:5], True, *args[6:], **limit)  # --fresh
+    check_mod.train_timed(*args[:5], True, *args[6:], seconds=600, cap=cap)  # --fresh
     assert called[-1]["overwrite"] and not called[-1]["resume"]
-    other = {"seconds": 300} if "seconds" in limit else {"until_solved": False}
-    check_mod.train_timed(*args, **other)  # not what it was solved in: trained again
-    assert len(called) == 2
+    check_mod.train_timed(*args, seconds=300, cap=cap)  # not what it was solved in: afresh
+    check_mod.train_timed(*args, seconds=600, cap=20_000 if cap else 5_000)
+    assert len(called) == 3 and all(k["overwrite"] for k in called)

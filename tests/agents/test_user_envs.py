@@ -44,20 +44,20 @@ def test_a_user_system_gets_default_hyperparameters():
     assert hparams.check_algo("Examples/CartPole-v0") == "ppo"
 
 
-def test_a_user_system_trains_until_solved_within_ten_minutes_unless_a_budget_is_declared(
-    tmp_path,
-):
+def test_every_agent_trains_until_solved_within_ten_minutes_and_its_declared_steps(tmp_path):
     user = "Examples/CartPole-v0"  # registered by importing examples.cart_pole
-    assert declared.seconds_of(user, None, None, None, None) == 600.0  # nothing declared
-    assert declared.seconds_of(user, None, 5000, None, None) is None  # --timesteps
-    assert declared.seconds_of(user, None, None, 90.0, None) == 90.0  # --budget
-    # a built-in task declares its steps; so may a --hyperparams file, for any env
-    assert declared.seconds_of("Lagrange/BeadOnRod-v1", None, None, None, None) is None
+    assert declared.seconds_of(None, None) == 600.0  # the command names no budget
+    assert declared.seconds_of(5000, None) is None  # --timesteps: the steps, to the end
+    assert declared.seconds_of(None, 90.0) == 90.0  # --budget
+    assert declared.steps_cap(user, None, None, None, None) is None  # nothing declared
+    # a built-in task declares its steps, a cap on the ten minutes; so may a file, for any env
+    assert declared.steps_cap("Lagrange/BeadOnRod-v1", None, None, None, None) == 200_000
+    assert declared.steps_cap("Lagrange/BeadOnRod-v1", None, None, 90.0, None) is None
     own = tmp_path / "ppo.yml"
     own.write_text(f"{user}:\n  n_timesteps: 20000\n")
-    assert declared.seconds_of(user, "ppo", None, None, own) is None
-    own.write_text("default:\n  learning_rate: 0.0003\n")  # other settings: still timed
-    assert declared.seconds_of(user, "ppo", None, None, own) == 600.0
+    assert declared.steps_cap(user, "ppo", None, None, own) == 20_000
+    own.write_text("default:\n  learning_rate: 0.0003\n")  # other settings: no cap
+    assert declared.steps_cap(user, "ppo", None, None, own) is None
 
 
 @pytest.mark.slow
