@@ -19,8 +19,9 @@ and loading (an untimed first episode per agent).
 Every agent trains until solved (`agents.learning.budget`'s rule, confirmed on fresh
 starts), at most 10 minutes and, where declared, at most its n_timesteps (the task's
 hyperparameters, the packaged YAML's entry or a --hyperparams file; the built-in tasks
-declare theirs): `agents.learning.declared`. A re-run reuses a solved run
-(`rundir.solved_run`) and trains any other afresh (a clock cannot be resumed). `--budget`
+declare theirs): `agents.learning.declared`. A re-run reuses a run that was solved
+or trained its declared steps (`rundir.finished_run`) and trains any other afresh
+(a clock cannot be resumed). `--budget`
 sets every agent's time, without a step cap; `--timesteps N` trains every agent N steps,
 to the end, and a re-run resumes or reuses those runs.
 """
@@ -63,9 +64,9 @@ from .learning.fingerprint import check_fingerprint, task_fingerprint
 from .learning.hparams import ALGOS, load_hyperparams
 from .learning.rundir import (
     check_earlier_run,
+    finished_run,
     latest_checkpoint,
     run_dir_of,
-    solved_run,
 )
 from .learning.timing import TIME_FILE as TIME_FILE
 from .learning.timing import record_segment
@@ -91,10 +92,10 @@ def train_timed(
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
     model's path and the run's `Training` record, whose time is summed over resumed segments.
     seconds: a wall-clock budget instead (agents.learning.budget; `budget` is then not used),
-    capped at `cap` steps if given: a solved run of it is reused unless `fresh`
-    (`solved_before`), any other trains afresh (a clock cannot be resumed)."""
+    capped at `cap` steps if given: a finished run of it is reused unless `fresh`
+    (`finished_before`), any other trains afresh (a clock cannot be resumed)."""
     if seconds and not fresh:
-        reused = solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap)
+        reused = finished_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap)
         if reused is not None:
             return run_dir / "model.zip", reused
     fresh = fresh or bool(seconds)
@@ -124,10 +125,10 @@ def train_timed(
     return result.model_path, Training(algo, shown, result.timesteps, train_s, timed, "", now)
 
 
-def solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap):
-    """The `Training` record of a solved run in `run_dir` of a time budget of `seconds`
-    capped at `cap` steps (or none) with these settings, which the check reuses instead of
-    training again (`rundir.solved_run`), else None."""
+def finished_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, cap):
+    """The `Training` record of a run in `run_dir` of a time budget of `seconds` capped at
+    `cap` steps (or none) with these settings that was solved or trained its cap, which the
+    check reuses instead of training again (`rundir.finished_run`), else None."""
     hp = load_hyperparams(algo, env_id, hyperparams)
     if cap is None:  # the run's schedules, as agents.train records them
         hp = budgets.constant_schedules(hp)
@@ -135,9 +136,9 @@ def solved_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds, 
         hp["randomize"] = randomize
     expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, budget_s=float(seconds))
     expected["n_timesteps"] = budgets.BUDGET_STEPS_CAP if cap is None else int(cap)
-    if not solved_run(run_dir, {**expected, "task": task_fingerprint(env_id)}):
-        return None
     train_s, trained = timing.recorded(run_dir)
+    if not finished_run(run_dir, {**expected, "task": task_fingerprint(env_id)}, trained):
+        return None
     return Training(algo, trained, trained, train_s, trained, "")
 
 
@@ -290,7 +291,7 @@ def run_check(
     `report_dir(out, env_ids)`. algo: the algorithm to train everywhere (default: per env,
     the task's `algo`). randomize: train with randomised parameters (agents.learning.randomization).
     seconds: train each agent until solved within this wall-clock budget (agents.learning.budget;
-    a solved run is reused, any other trains afresh: a clock cannot be resumed). timesteps:
+    a finished run is reused, any other trains afresh: a clock cannot be resumed). timesteps:
     train each for this many steps, to the end. With neither, each trains until solved
     within `declared.DEFAULT_SECONDS` and the steps its task declares, if it does
     (`declared.steps_cap`)."""
@@ -303,7 +304,7 @@ def run_check(
     report = report_dir(out, [check_env_id(e) for e in given], timesteps, seconds, randomize)
     timed = declared.seconds_of(timesteps, seconds)
     caps = {e: declared.steps_cap(e, algo, timesteps, seconds, hyperparams) for e in env_ids}
-    if not (fresh or timed):  # a time budget's runs are reused only when solved, as they were
+    if not (fresh or timed):  # a time budget's runs are reused only where finished, as they were
         check_runs_on_disk(env_ids, algo, seed, out, timesteps, hyperparams, randomize)
     set_torch_threads(DEFAULT_TORCH_THREADS)
     print(
@@ -393,7 +394,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=budget_arg,
         help=f"train each agent until solved ({RULE.replace('%', '%%')}) "
         "within this wall-clock time (600, 90s, 10m), keeping the model that met it (else "
-        "the best evaluated; a re-run reuses a solved run and trains any other afresh); "
+        "the best evaluated; a re-run reuses a run that was solved or trained its step cap, "
+        "and trains any other afresh); "
         "instead of --timesteps (agents.learning.budget); without either, each trains so "
         "for 10m, at most its declared n_timesteps",
     )

@@ -244,18 +244,21 @@ def check_earlier_run(run_dir: Path, budget: int, hp: dict) -> None:
         )
 
 
-def solved_run(run_dir: Path, expected: dict) -> bool:
-    """Whether `run_dir` holds a run that stopped when solved (solved.json, the confirmed
-    model kept as model.zip) and trained what `expected` says: each of its entries (env_id,
-    algo, seed, hyperparams, task fingerprint, its budget of time or steps) equal to the
-    run's config.yml. `agents.check` reuses such a run: resumed, it would train on past its
-    solution, and its stop at success is on the step schedule, where a fresh run of the same
-    seed on the same machine stops again."""
-    if not all((run_dir / name).is_file() for name in ("config.yml", "model.zip", "solved.json")):
+def finished_run(run_dir: Path, expected: dict, trained: int) -> bool:
+    """Whether `run_dir` holds a time-budget run that ended where a fresh run of the same
+    seed on the same machine ends again, and trained what `expected` says (each entry: env_id,
+    algo, seed, hyperparams, budget_s, n_timesteps, task fingerprint; equal to its
+    config.yml): solved (solved.json, the confirmed model kept as model.zip; the stop is on
+    the step schedule), or through its step cap (`trained`, the steps it trained, reaching
+    n_timesteps), where the clock did not decide. `agents.check` reuses such a run; one
+    that ran out of time trains afresh (a clock cannot be resumed)."""
+    if not all((run_dir / name).is_file() for name in ("config.yml", "model.zip")):
         return False
     then = read_config(run_dir)
     now = yaml.safe_load(yaml.safe_dump(expected))  # as config.yml stores it
-    return all(then.get(key) == value for key, value in now.items())
+    if any(then.get(key) != value for key, value in now.items()):
+        return False
+    return (run_dir / "solved.json").is_file() or trained >= int(then.get("n_timesteps", 0))
 
 
 # ---- a saved run, read back ----------------------------------------------------------------

@@ -16,7 +16,7 @@ from agents.check import TIME_FILE, build_parser, main, record_segment, run_chec
 from agents.common import UserError
 from agents.learning import budget as budgets
 from agents.learning import confirm as confirmation
-from agents.learning.rundir import solved_run
+from agents.learning.rundir import finished_run
 
 ARM = next(env_id for env_id in envs.ENV_IDS if "/TwoLinkArm-" in env_id)
 ARM_DIR = "train/" + ARM.replace("/", "-")
@@ -208,7 +208,7 @@ def test_each_budget_reports_in_a_directory_of_its_own(tmp_path):
 BEAD = next(env_id for env_id in envs.ENV_IDS if "/BeadOnRod-" in env_id)
 
 
-def _solved_run(run_dir, **config):
+def _finished_run(run_dir, **config):
     """A run directory as a solved budget run leaves it (its files' contents aside)."""
     run_dir.mkdir(parents=True)
     (run_dir / "config.yml").write_text(yaml.safe_dump(config))
@@ -217,15 +217,18 @@ def _solved_run(run_dir, **config):
     return run_dir
 
 
-def test_a_solved_run_is_reused_only_with_the_settings_it_trained(tmp_path):
+def test_a_run_is_reused_where_it_finished_with_the_settings_it_trained(tmp_path):
     config = dict(env_id=BEAD, algo="ppo", seed=0, budget_s=600.0, hyperparams={"gamma": 0.98})
-    run_dir = _solved_run(tmp_path / "run", **config, n_timesteps=10**9, task="abc")
-    assert solved_run(run_dir, {**config, "task": "abc"})
+    config["n_timesteps"] = 200_000  # the declared steps, a cap
+    run_dir = _finished_run(tmp_path / "run", **config, task="abc")
+    now = {**config, "task": "abc"}
+    assert finished_run(run_dir, now, trained=120_000)  # solved
     for other in ({"seed": 1}, {"budget_s": 300.0}, {"hyperparams": {"gamma": 0.99}}):
-        assert not solved_run(run_dir, {**config, "task": "abc", **other}), other
-    assert not solved_run(run_dir, {**config, "task": "another declaration"})
-    (run_dir / "solved.json").unlink()  # it ran out of time: trained afresh
-    assert not solved_run(run_dir, {**config, "task": "abc"})
+        assert not finished_run(run_dir, {**now, **other}, trained=120_000), other
+    assert not finished_run(run_dir, {**now, "task": "another declaration"}, trained=120_000)
+    (run_dir / "solved.json").unlink()  # not solved: reused where it trained its cap,
+    assert finished_run(run_dir, now, trained=200_704)  # where the clock did not decide
+    assert not finished_run(run_dir, now, trained=150_000)  # it ran out of time: afresh
 
 
 @pytest.mark.slow  # a run to its (forced) solution, about 3 s each
