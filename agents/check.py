@@ -9,21 +9,20 @@ declares one), LQR, and an SB3 agent trained with the task's algorithm and hyper
 comparison (how episodes ended, 95 % intervals, findings claimed only where the intervals
 separate: `agents.scoring.report`) and writes it, a CSV and a figure to runs/check/.
 
-Training runs live under runs/check/train/ENV/ALGO_seedS_Nsteps, one directory per budget:
-a re-run with the same budget resumes (or reuses) its run, another budget starts a fresh
-one and keeps the earlier, a run whose stored hyperparameters differ from today's is
-refused unless --fresh retrains it. Training time is stored in the run directory
-(`TIME_FILE`, summed over resumed segments); evaluation time excludes one-off compilation
-and loading (an untimed first episode per agent).
-
 Every agent trains until solved (`agents.learning.budget`'s rule, confirmed on fresh
 starts), at most 10 minutes and, where declared, at most its n_timesteps (the task's
 hyperparameters, the packaged YAML's entry or a --hyperparams file; the built-in tasks
-declare theirs): `agents.learning.declared`. A re-run reuses a run that was solved
-or trained its declared steps (`rundir.finished_run`) and trains any other afresh
-(a clock cannot be resumed). `--budget`
-sets every agent's time, without a step cap; `--timesteps N` trains every agent N steps,
-to the end, and a re-run resumes or reuses those runs.
+declare theirs): `agents.learning.declared`. `--budget` sets every agent's time, without a
+step cap; `--timesteps N` trains every agent N steps, to the end.
+
+Training runs live under runs/check/train/ENV/, one directory per budget (ALGO_seedS_600s,
+ALGO_seedS_Nsteps). A re-run reuses a time budget's run that was solved or trained its
+declared steps (`rundir.finished_run`) and trains any other afresh (a clock cannot be
+resumed); it resumes (or reuses) a step budget's run, and refuses one whose stored
+hyperparameters differ from today's unless --fresh retrains it; another budget starts a
+fresh run and keeps the earlier. Training time is stored in the run directory
+(`TIME_FILE`, summed over resumed segments); evaluation time excludes one-off compilation
+and loading (an untimed first episode per agent).
 """
 
 from __future__ import annotations
