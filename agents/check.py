@@ -163,8 +163,9 @@ def check_env(
     named in the rows relative to `report`, the report's directory; default `out`). The
     agent trains with `randomize` (agents.learning.randomization) if given; every agent is scored
     on the nominal env. seconds: a wall-clock budget (agents.learning.budget) instead of steps,
-    capped at `cap` steps if given; diagnoses: a list the lines of a failed agent's diagnosis are appended to; refused: a
-    list each agent not run is appended to (`Refused`, with its one-line reason)."""
+    capped at `cap` steps if given; diagnoses: a list the lines of a failed agent's
+    diagnosis are appended to; refused: a list each agent not run is appended to
+    (`Refused`, with its one-line reason)."""
     algo = algo or hparams.check_algo(env_id)
     heuristic = heuristic_of(env_id)
     plans = "plan" in task_of(env_id).hyperparams  # planning is declared where it pays
