@@ -34,8 +34,8 @@ episodes end before the time limit; a budget shorter than the end itself (a few 
 cannot be met.
 
 Without `--timesteps` a budget run has no step count to decay a schedule over, so its
-learning rate's "lin_X" decays over the budget's time instead (`OverBudget`: X over the
-first half, then falling with the time left to `DECAY_FLOOR` x X), and the other "lin_X"
+learning rate's "lin_X" decays over the budget's time instead (`OverBudget`: X times the
+share of the budget left, never below `DECAY_FLOOR` x X), and the other "lin_X"
 schedules are read as the constant X; with `--timesteps` too, the steps cap the run and
 the schedules decay over them as usual. A run that is solved early stops while its rate is
 still high; one that trains to the end of its budget settles.
@@ -115,16 +115,12 @@ def budget_eval_freq(
 
 DECAY_FLOOR = 0.05
 """The learning rate at the end of a budget, as a fraction of its start (`OverBudget`)."""
-DECAY_FROM = 0.5
-"""The share of a budget's time after which its learning rate starts to fall (`OverBudget`)."""
 
 
 class OverBudget:
-    """A learning rate "lin_X" in a budget run: X until DECAY_FROM of the budget's time on
-    `clock` is spent, then falling in proportion to the time left, to DECAY_FLOOR x X at the
-    end (a decay from the start halved the rate of the swing-ups that need half their budget
-    and doubled their time to success). Pickled without its clock (SB3 rebuilds a loaded
-    model's schedule from its constant learning rate; a resumed run sets a new one)."""
+    """A learning rate "lin_X" in a budget run: X times the share of the budget's time left
+    on `clock`, never below DECAY_FLOOR x X. Pickled without its clock (SB3 rebuilds a
+    loaded model's schedule from its constant learning rate; a resumed run sets a new one)."""
 
     def __init__(self, start: float, clock: Clock | None = None):
         self.start, self.clock = float(start), clock
@@ -133,8 +129,7 @@ class OverBudget:
         clock = self.clock
         if clock is None or not math.isfinite(clock.seconds):
             return self.start
-        left = clock.left() / (clock.seconds * (1.0 - DECAY_FROM))
-        return self.start * min(max(left, DECAY_FLOOR), 1.0)
+        return self.start * max(clock.left() / clock.seconds, DECAY_FLOOR)
 
     def __getstate__(self) -> dict:
         return {"start": self.start}
