@@ -85,9 +85,18 @@ from .train import TrainingInterrupted, train
 
 
 def train_timed(
-    env_id, algo, budget, seed, run_dir, fresh, progress, hyperparams, randomize=None,
-    seconds=None, cap=None,
-):  # fmt: skip
+    env_id,
+    algo,
+    budget,
+    seed,
+    run_dir,
+    fresh,
+    progress,
+    hyperparams,
+    randomize=None,
+    seconds=None,
+    cap=None,
+):
     """train(), resuming a run of this budget found on disk unless `fresh`; returns the
     model's path and the run's `Training` record, whose time is summed over resumed segments.
     seconds: a wall-clock budget instead (agents.learning.budget; `budget` is then not used),
@@ -128,13 +137,11 @@ def finished_before(env_id, algo, seed, run_dir, hyperparams, randomize, seconds
     """The `Training` record of a run in `run_dir` of a time budget of `seconds` capped at
     `cap` steps (or none) with these settings that was solved or trained its cap, which the
     check reuses instead of training again (`rundir.finished_run`), else None."""
-    hp = load_hyperparams(algo, env_id, hyperparams)
-    if cap is None:  # the run's schedules, as agents.train records them
-        hp = budgets.constant_schedules(hp)
+    hp, steps, _ = budgets.budget_run(load_hyperparams(algo, env_id, hyperparams), cap)
     if randomize is not None:
         hp["randomize"] = randomize
-    expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, budget_s=float(seconds))
-    expected["n_timesteps"] = budgets.BUDGET_STEPS_CAP if cap is None else int(cap)
+    expected = dict(env_id=env_id, algo=algo, seed=seed, hyperparams=hp, n_timesteps=steps)
+    expected["budget_s"] = float(seconds)
     train_s, trained = timing.recorded(run_dir)
     if not finished_run(run_dir, {**expected, "task": task_fingerprint(env_id)}, trained):
         return None

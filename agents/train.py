@@ -184,9 +184,8 @@ def _checked_arguments(
     runs to the step cap with constant schedules, but for the learning rate's."""
     hp = load_hyperparams(algo, env_id, hyperparams)
     decay = None
-    if budget is not None and timesteps is None:  # the clock or success stops it
-        decay = budgets.decaying_rate(hp)
-        timesteps, hp = budgets.BUDGET_STEPS_CAP, budgets.constant_schedules(hp)
+    if budget is not None:  # the clock or success stops it, and the steps if given
+        hp, timesteps, decay = budgets.budget_run(hp, timesteps)
     total = int(timesteps if timesteps is not None else hp["n_timesteps"])
     declared = int(hp.get("n_envs", 1))
     n_envs = int(n_envs if n_envs is not None else declared)

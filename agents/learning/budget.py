@@ -151,6 +151,15 @@ def constant_schedules(hp: dict) -> dict:
     }
 
 
+def budget_run(hp: dict, timesteps: int | None) -> tuple[dict, int | None, float | None]:
+    """A budget run's hyperparameters, step count and the rate that decays over its time:
+    with `timesteps`, those steps and `hp` as they are; without, `BUDGET_STEPS_CAP`, every
+    "lin_X" read as the constant X, and X the learning rate's (None: no "lin_" rate)."""
+    if timesteps is not None:
+        return hp, timesteps, None
+    return constant_schedules(hp), BUDGET_STEPS_CAP, decaying_rate(hp)
+
+
 class Clock(BaseCallback):
     """Stops training early enough that the run ends within `seconds` of `begin()`: at each
     step it keeps back what still has to come after the stop (`after_s`: the final
