@@ -287,6 +287,5 @@ def _rates_from_constraints(system, x: np.ndarray, rates: list[int]) -> np.ndarr
         e[:, i] += 1.0
         cols.append(system.constraint_residual(e) - r0)
     B = np.stack(cols, axis=-1)  # (N, n_c, len(rates))
-    for b in range(len(x)):
-        x[b, rates] += np.linalg.lstsq(B[b], -r0[b], rcond=None)[0]
+    x[:, rates] -= (np.linalg.pinv(B) @ r0[:, :, None])[:, :, 0]  # each row's least squares
     return x

@@ -230,32 +230,32 @@ class LQRPolicy:
         """dx' P dx of states x (N, n_x) about each row's operating point (the value of the
         infinite-horizon LQR problem, unsaturated)."""
         x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
-        dx = self.error(x, x0)
-        cost = np.empty(len(x))
-        for rows, d in self._groups(x0, u0):
-            e = np.ascontiguousarray(dx[rows][:, d.linear.index])
-            cost[rows] = (e[:, None, :] @ d.P @ e[:, :, None])[:, 0, 0]  # e' P e, row by row
-        return cost
+        return self.cost_of(x, x0, self.designs(x0, u0))
+
+    def cost_of(self, x, x0, designs: list[LQRDesign]) -> np.ndarray:
+        """dx' P dx of states x (N, n_x) about x0 (N, n_x) with `designs`: one for every row
+        or one per row (numpy's matmul over a stack of contiguous rows makes the same BLAS
+        call per row as the product of that row alone, so stacking changes no result)."""
+        e = np.ascontiguousarray(self.error(x, x0)[:, designs[0].linear.index])
+        P = designs[0].P if len(designs) == 1 else np.stack([d.P for d in designs])
+        return (e[:, None, :] @ P @ e[:, :, None])[:, 0, 0]  # e' P e, row by row
 
     def act(self, x, x0, u0) -> np.ndarray:
         """Normalised actions for physical states x (batched), clipped to [-1, 1]."""
         x, x0, u0 = np.atleast_2d(x), np.atleast_2d(x0), np.atleast_2d(u0)
-        dx = self.error(x, x0)
+        designs = self.designs(x0, u0)
+        e = np.ascontiguousarray(self.error(x, x0)[:, designs[0].linear.index])
+        K = designs[0].K if len(designs) == 1 else np.stack([d.K for d in designs])
         a = self.env.input_to_action(u0).astype(np.float64)
-        for rows, d in self._groups(x0, u0):
-            e = np.ascontiguousarray(dx[rows][:, d.linear.index])
-            a[rows] -= (d.K @ e[:, :, None])[:, :, 0]  # K e, row by row
-        return np.clip(a, -1.0, 1.0)
+        return np.clip(a - (K @ e[:, :, None])[:, :, 0], -1.0, 1.0)  # K e, as cost_of
 
-    def _groups(self, x0, u0):
-        """(rows, design) for the rows' operating points: one group where every row has
-        the same (a fixed operating point, the common case), else one per row. The stacked
-        products above do each row's arithmetic as the product of that row alone would
-        (numpy's matmul over a stack of contiguous rows: the same BLAS call per row; a
-        strided copy rounds otherwise), so grouping changes no result."""
-        if len(x0) > 1 and (x0 == x0[0]).all() and (u0 == u0[0]).all():
-            return [(slice(None), self.design(x0[0], u0[0]))]
-        return [(slice(i, i + 1), self.design(x0[i], u0[i])) for i in range(len(x0))]
+    def designs(self, x0, u0) -> list[LQRDesign]:
+        """The designs for the rows' operating points: one where every row has the same (a
+        fixed operating point, the common case), else one per row. All are made on
+        `self.states`, so their `linear.index` is the same."""
+        if len(x0) == 1 or ((x0 == x0[0]).all() and (u0 == u0[0]).all()):
+            return [self.design(x0[0], u0[0])]
+        return [self.design(a, b) for a, b in zip(x0, u0)]
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         """stable-baselines3's interface: (action, None) for one or a batch of observations."""

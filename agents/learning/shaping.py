@@ -66,21 +66,21 @@ class LQRPotential:
             x0, u0 = env.operating_point(obs)
             return self.lqr.cost_to_go(x, x0, u0)
         goals = env.goal_from_observation(obs)  # the operating point depends on these only
-        cost = np.empty(len(x))
-        groups: dict[bytes, list[int]] = {}
-        for i, g in enumerate(goals):
-            groups.setdefault(g.tobytes(), []).append(i)
-        for key, rows in groups.items():
-            point = self._points.get(key)
-            if point is None:
-                x0, u0 = (v[0] for v in env.operating_point(obs[rows[:1]]))
-                point = self._points[key] = (x0, self.lqr.design(x0, u0))
-                if len(self._points) > 4096:
-                    self._points.clear()
-            x0, d = point
-            e = self.lqr.error(x[rows], x0)[:, d.linear.index]
-            cost[rows] = np.einsum("ri,ij,rj->r", e, d.P, e)
-        return cost
+        points = [self._points.get(g.tobytes()) for g in goals]
+        for i in [i for i, point in enumerate(points) if point is None]:
+            points[i] = self._point(goals[i], obs[i : i + 1])
+        x0 = np.stack([point[0] for point in points])
+        return self.lqr.cost_of(x, x0, [point[1] for point in points])
+
+    def _point(self, goal: np.ndarray, obs: np.ndarray) -> tuple:
+        """(x0, LQR design) of the operating point of `goal` (read from `obs`), cached."""
+        key = goal.tobytes()
+        if key not in self._points:
+            if len(self._points) > 4096:
+                self._points.clear()
+            x0, u0 = (v[0] for v in self.lqr.env.operating_point(obs))
+            self._points[key] = (x0, self.lqr.design(x0, u0))
+        return self._points[key]
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         v = self.cost(np.asarray(obs, dtype=np.float64).reshape(len(obs), -1))

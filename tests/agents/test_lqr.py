@@ -230,8 +230,9 @@ def test_predict_is_batched_and_saturates():
 @pytest.mark.filterwarnings("ignore:LQR on task:RuntimeWarning")  # arbitrary points, no equilibria
 @pytest.mark.parametrize("goals", ["shared", "each its own"])
 def test_a_batch_acts_and_costs_as_each_row_alone(goals):
-    """Rows sharing an operating point are costed and acted on in one stacked product,
-    with each row's own arithmetic: the same bits as the row alone."""
+    """A batch is costed and acted on in one stacked product (one design for rows sharing
+    an operating point, else one per row), with each row's own arithmetic: the same bits
+    as the row alone."""
     import gymnasium as gym
 
     env = gym.make("Lagrange/TwoLinkArm-v1")
@@ -247,7 +248,7 @@ def test_a_batch_acts_and_costs_as_each_row_alone(goals):
     alone_act = np.stack([policy.act(x[i], X0[i], U0[i])[0] for i in range(n)])
     assert np.array_equal(policy.cost_to_go(x, X0, U0), alone_cost)
     assert np.array_equal(policy.act(x, X0, U0), alone_act)
-    assert len(policy._groups(X0, U0)) == (1 if goals == "shared" else n)
+    assert len(policy.designs(X0, U0)) == (1 if goals == "shared" else n)
     d, dx = policy.design(X0[0], U0[0]), policy.error(x, X0)
     assert alone_cost[0] == dx[0, d.linear.index] @ d.P @ dx[0, d.linear.index]  # as before
 
