@@ -42,7 +42,7 @@ from .common import (
     write_atomic,
 )
 from .learning import budget as budgets
-from .learning import randomization
+from .learning import confirm, randomization
 from .learning import solved as stops
 from .learning.callbacks import (
     AtomicCheckpoint,
@@ -147,9 +147,12 @@ def train(
         found = prepare_run_dir(run_dir, env_id, algo, resume, overwrite, config)
         config.update(params.record(env_id, env_options))  # randomize's ranges, --params
         write_atomic(run_dir / "config.yml", yaml.safe_dump(config, sort_keys=False))
+        rollout = 0 if off_policy(algo) else int(hp.get("n_steps", 2048)) * n_envs
         options = dict(
             eval_freq=eval_freq
-            or budgets.budget_eval_freq(total, hp["n_timesteps"], budget, off_policy(algo)),
+            or budgets.budget_eval_freq(
+                total, hp["n_timesteps"], budget, off_policy(algo), rollout
+            ),
             eval_episodes=eval_episodes,
             checkpoint_freq=checkpoint_freq or max(total // 5, 1),
             progress=progress,
@@ -218,7 +221,8 @@ def _randomization(run_dir: Path, env_id: str, hp: dict, randomize, resume: bool
 def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, **o) -> TrainResult:
     """Build (or load) the model, learn up to `total` timesteps, save; see `train`."""
     ckpt_dir = run_dir / "checkpoints"
-    eval_envs = min(o["eval_episodes"], 5)
+    # every episode of an evaluation at once, one batched step for all (as the confirmation)
+    eval_envs = min(o["eval_episodes"], confirm.EPISODES)
     train_env, eval_env = make_envs(env_id, hp, n_envs, seed, vectorization, eval_envs)
     stop = GracefulStop()
     try:

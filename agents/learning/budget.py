@@ -98,7 +98,7 @@ def budget_arg(text: str) -> float:
 
 
 def budget_eval_freq(
-    total: int, declared: int, budget: float | None, off_policy: bool = False
+    total: int, declared: int, budget: float | None, off_policy: bool = False, rollout: int = 0
 ) -> int:
     """Env steps between evaluations: a tenth of the run (at least 2,000); with a time
     budget, a thirtieth of the declared n_timesteps, so that the stop rule's three
@@ -107,10 +107,14 @@ def budget_eval_freq(
     learner (PPO trains 3-6k steps a second here: an evaluation of 20 episodes every 2-3 s
     of training would take as long as the training) and 1,000 for an off-policy one
     (50-100 steps a second here, one gradient step per env step: 10,000 steps would be 2-3
-    minutes between evaluations, most of a short budget)."""
+    minutes between evaluations, most of a short budget). `rollout`: an on-policy
+    learner's steps per update (n_steps x n_envs), a floor in both cases: its weights
+    change once a rollout, so a shorter interval evaluates the same weights twice (the
+    three-link arm example's 64 copies x 256 steps: 16,384 steps, 1.6 evaluations a
+    rollout at 10,000)."""
     if budget is None:
-        return max(min(total, declared) // 10, 2000)
-    return max(declared // 30, 1_000 if off_policy else 10_000)
+        return max(min(total, declared) // 10, 2000, rollout)
+    return max(declared // 30, 1_000 if off_policy else 10_000, rollout)
 
 
 DECAY_FLOOR = 0.05

@@ -2,7 +2,9 @@
 
 Both files are rewritten atomically whenever a checkpoint or evaluation is made, so a killed
 run leaves them consistent with its last checkpoint; a resumed run reads them back and drops
-the rows recorded after that checkpoint.
+the rows recorded after that checkpoint. The plot is redrawn at every checkpoint, at the end,
+and after an evaluation at most every `PLOT_SECONDS` (drawing it takes about a third of a
+second, longer than an evaluation of many tasks, and a run may evaluate every few seconds).
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from ..common import atomic_path, write_atomic
 
 EPISODE_FIELDS = ("timesteps", "return", "length", "is_success")
 EVAL_FIELDS = ("timesteps", "mean_return", "std_return", "success_rate", "mean_length", "wall_s")
+PLOT_SECONDS = 30.0
+"""The least time between two plots drawn after evaluations."""
 
 
 def read_rows(path: Path, up_to_timesteps: int | None = None) -> list[dict]:
@@ -60,6 +64,7 @@ class CurveLogger(BaseCallback):
         self.episodes = read_rows(self.episodes_csv, cut)
         self.evals = read_rows(self.eval_csv, cut)
         self._t0 = time.perf_counter() - (float(self.evals[-1]["wall_s"]) if self.evals else 0.0)
+        self._plotted = -float("inf")  # when the plot was last drawn (perf_counter)
         self.after_eval = _AfterEval(self)
 
     def _on_step(self) -> bool:
@@ -91,13 +96,15 @@ class CurveLogger(BaseCallback):
                 "wall_s": round(time.perf_counter() - self._t0, 2),
             }
         )
-        self.flush()
+        self.flush(plot=time.perf_counter() - self._plotted >= PLOT_SECONDS)
 
-    def flush(self) -> None:
-        """Write episodes.csv, eval.csv and learning_curve.png (each atomically)."""
+    def flush(self, plot: bool = True) -> None:
+        """Write episodes.csv, eval.csv and (with `plot`) learning_curve.png, each atomically."""
         write_rows(self.episodes_csv, EPISODE_FIELDS, self.episodes)
         write_rows(self.eval_csv, EVAL_FIELDS, self.evals)
-        plot_curves(self.episodes, self.evals, self.plot_png, self.title)
+        if plot:
+            plot_curves(self.episodes, self.evals, self.plot_png, self.title)
+            self._plotted = time.perf_counter()
 
     def truncate(self, up_to_timesteps: int) -> None:
         """Drop the rows recorded after `up_to_timesteps` (a run stopped mid-rollout keeps

@@ -251,6 +251,11 @@ def test_a_budget_run_evaluates_an_off_policy_learner_ten_times_as_often():
     assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 30_000, 120.0, False) == 10_000
     assert budget.budget_eval_freq(3_000_000, 3_000_000, 600.0, False) == 100_000  # a step cap
     assert budget.budget_eval_freq(50_000, 30_000, None, True) == 3_000  # no budget: a tenth
+    # an on-policy learner's weights change once a rollout: no two evaluations in one (the
+    # three-link arm example's 64 copies x 256 steps)
+    assert budget.budget_eval_freq(budget.BUDGET_STEPS_CAP, 100_000, 600.0, False, 16_384) == 16_384
+    assert budget.budget_eval_freq(100_000, 100_000, None, False, 16_384) == 16_384
+    assert budget.budget_eval_freq(100_000, 100_000, 600.0, False, 2_048) == 10_000
 
 
 def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
