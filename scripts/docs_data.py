@@ -168,7 +168,9 @@ def _machines(data: dict) -> bool:
     return any("where" in r for r in data["rows"])
 
 
-def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:
+def store_learning(
+    csvs: list[str], command: str, budget_s: float, commit: str | None = None
+) -> Path:
     """docs/data/learning.json from a learning benchmark's results.csv files."""
     sys.path.insert(0, str(ROOT))
     from benchmarks.baselines import machine
@@ -179,7 +181,7 @@ def store_learning(csvs: list[str], command: str, budget_s: float) -> Path:
         "run": {
             "command": command,
             "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "commit": head_commit(),
+            "commit": commit or head_commit(),
             "machine": machine(),
             "budget_s": budget_s,
         },
@@ -253,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     learning.add_argument("--command", default="python benchmarks/learning.py",
                           help="the benchmark's command line, as run")  # fmt: skip
     learning.add_argument("--budget", type=float, default=600.0, help="its budget, seconds")
+    learning.add_argument("--commit", help="the commit it ran (default: this checkout's)")
     job = sub.add_parser("main-job", help="store a main job's results.csv and wall time")
     job.add_argument("csv", help="runs/check/results.csv of `python -m agents.check`")
     job.add_argument("--wall", type=float, required=True, help="its wall time, seconds")
@@ -263,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.kind == "main-job":
         print(store_main_job(args.csv, args.wall, args.command, args.note, args.commit))
     else:
-        print(store_learning(args.csv, args.command, args.budget))
+        print(store_learning(args.csv, args.command, args.budget, args.commit))
     return 0
 
 
