@@ -23,7 +23,7 @@ the final evaluation, the checkpoint and every save. The run's `wall_s` (the rep
 training time) is that span, and it ends within the budget: at each step the `Clock` keeps
 back what must still follow a stop, each part measured in the run itself (the final
 evaluation at its longest, the last evaluation's time per step scaled to episodes that all
-run to the time limit, plus its records; the saves, two evaluations' records; the time to
+run to the time limit, plus the most its records took; the saves, twice that; the time to
 its next check, the update phase where one comes first). An evaluation that would not end
 in time is not started (training stops, and the final evaluation evaluates that model);
 one after which there is no time for another ends training at the model it evaluated. What
@@ -183,7 +183,7 @@ class Clock(BaseCallback):
         self.start: float | None = None
         self.ran_out = False
         self.eval_step_s: float | None = None  # an evaluation's seconds per vector step
-        self.records_s = RECORDS_S  # the last evaluation's records and saves took
+        self.records_s = RECORDS_S  # the most an evaluation's records and saves took
         self.update_s = 0.0  # the longest update phase (gradient steps between rollouts)
         self.confirm_s: float | None = None  # the longest confirmation
         self.updates = 0  # update phases so far: the weights change only there
@@ -247,7 +247,9 @@ class Clock(BaseCallback):
         """An evaluation took `seconds`, `records_s` of them in its records and saves, and
         ran episodes of `lengths` steps on `eval_envs` envs at once."""
         self._aside += seconds
-        self.records_s = records_s  # the first is slower (it imports matplotlib)
+        # the most any took: the first draws the learning curve, which later ones do only
+        # every curves.PLOT_SECONDS, and the end draws it again (a third of a second each)
+        self.records_s = records_s if self.eval_step_s is None else max(self.records_s, records_s)
         # at least its longest episode, and its steps shared evenly: a lower bound on the
         # vector steps it took, so its time per step is not underestimated
         steps = max(max(lengths, default=1), math.ceil(sum(lengths) / self.eval_envs), 1)

@@ -65,6 +65,7 @@ class CurveLogger(BaseCallback):
         self.evals = read_rows(self.eval_csv, cut)
         self._t0 = time.perf_counter() - (float(self.evals[-1]["wall_s"]) if self.evals else 0.0)
         self._plotted = -float("inf")  # when the plot was last drawn (perf_counter)
+        self._drawn: tuple[int, int] | None = None  # the rows it was drawn from
         self.after_eval = _AfterEval(self)
 
     def _on_step(self) -> bool:
@@ -99,12 +100,14 @@ class CurveLogger(BaseCallback):
         self.flush(plot=time.perf_counter() - self._plotted >= PLOT_SECONDS)
 
     def flush(self, plot: bool = True) -> None:
-        """Write episodes.csv, eval.csv and (with `plot`) learning_curve.png, each atomically."""
+        """Write episodes.csv, eval.csv and (with `plot`, where rows came since it was last
+        drawn) learning_curve.png, each atomically."""
         write_rows(self.episodes_csv, EPISODE_FIELDS, self.episodes)
         write_rows(self.eval_csv, EVAL_FIELDS, self.evals)
-        if plot:
+        rows = (len(self.episodes), len(self.evals))
+        if plot and rows != self._drawn:
             plot_curves(self.episodes, self.evals, self.plot_png, self.title)
-            self._plotted = time.perf_counter()
+            self._plotted, self._drawn = time.perf_counter(), rows
 
     def truncate(self, up_to_timesteps: int) -> None:
         """Drop the rows recorded after `up_to_timesteps` (a run stopped mid-rollout keeps
