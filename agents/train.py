@@ -260,7 +260,8 @@ def _run(env_id, algo, hp, total, n_envs, seed, vectorization, run_dir, found, *
             if learning:
                 callbacks = [stop, clock, curves, evaluation, checkpoint]
                 label = f"{algo.upper()} on {env_id}" if o["progress"] else ""
-                learn(model, total, callbacks, fresh=found is None, progress=label)
+                time_left = clock.left if o["budget"] else None
+                learn(model, total, callbacks, found is None, label, time_left)
             if stop.signum is not None:  # keep what the weights have learnt from, no more
                 model.num_timesteps = stop.consistent_timesteps
                 curves.truncate(model.num_timesteps)

@@ -10,6 +10,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -193,13 +194,15 @@ class ScheduledEval(EvalCallback):
 
 class LogProgress(BaseCallback):
     """Progress as one line every `every` seconds (and at the end), for output that is not
-    a terminal, where a progress bar shows nothing until the run ends."""
+    a terminal, where a progress bar shows nothing until the run ends. `time_left` (a
+    budget run's clock): seconds left; the run ends at whichever comes first, the steps or
+    the time, and the line counts towards that one."""
 
     every = 30.0
 
-    def __init__(self, label: str, stream=None):
+    def __init__(self, label: str, stream=None, time_left: Callable[[], float] | None = None):
         super().__init__()
-        self.label, self.stream = label, stream
+        self.label, self.stream, self.time_left = label, stream, time_left
         self._start = self._next = 0.0
         self._first = self._total = 0
 
@@ -222,12 +225,39 @@ class LogProgress(BaseCallback):
         now, done = time.monotonic(), self.num_timesteps
         rate = (done - self._first) / max(now - self._start, 1e-9)
         left = max(self._total - done, 0) / rate if rate > 0 else float("inf")
+        clock_left = max(self.time_left(), 0.0) if self.time_left is not None else float("inf")
+        if clock_left < left:  # the budget's time ends the run first
+            done_text, left = f"{done:,} steps", clock_left
+        else:
+            done_text = f"{done:,}/{self._total:,} steps ({done / self._total:.0%})"
         print(
-            f"  {self.label}: {done:,}/{self._total:,} steps ({done / self._total:.0%}), "
-            f"{rate:,.0f} steps/s, about {left / 60:.1f} min left",
+            f"  {self.label}: {done_text}, {rate:,.0f} steps/s, about {left / 60:.1f} min left",
             file=self.stream or sys.stderr,
             flush=True,
         )
+
+
+class BudgetBar(ProgressBarCallback):
+    """SB3's progress bar over a budget run's seconds, with the steps trained beside it (the
+    run's step count is only a cap, which the time or success ends first)."""
+
+    def __init__(self, time_left: Callable[[], float]):
+        super().__init__()
+        self.time_left = time_left
+        self._seconds = 0.0
+
+    def _on_training_start(self) -> None:
+        from tqdm.rich import tqdm  # as SB3's bar (whose import silenced its warning)
+
+        self._seconds = max(self.time_left(), 0.0)
+        self.pbar = tqdm(total=round(self._seconds), unit="s")
+
+    def _on_step(self) -> bool:
+        spent = min(round(self._seconds - self.time_left()), self.pbar.total)
+        if spent > self.pbar.n:  # tqdm redraws at most every 0.1 s of its own
+            self.pbar.set_description(f"{self.num_timesteps:,} steps", refresh=False)
+            self.pbar.update(spent - self.pbar.n)
+        return True
 
 
 class EvaluationStopped(Exception):
@@ -299,16 +329,26 @@ class _StopFirst(CallbackList):
         return all(callback.on_step() for callback in self.callbacks)
 
 
-def learn(model: BaseAlgorithm, total: int, callbacks: list, fresh: bool, progress: str):
+def learn(
+    model: BaseAlgorithm,
+    total: int,
+    callbacks: list,
+    fresh: bool,
+    progress: str,
+    time_left: Callable[[], float] | None = None,
+):
     """model.learn up to `total` steps with `callbacks` (stopping at the first that asks),
-    showing progress under the label `progress`."""
+    showing progress under the label `progress` (and, for a budget run, the `time_left`)."""
     # our own progress bar, so that it is closed (and its refresh thread stopped) however
     # learn() ends; SB3's (progress_bar=True) is closed only when training ends normally.
     # Where stderr is not a terminal (a log file), a line every LogProgress.every seconds
     # (`progress` is the lines' label; empty: no progress shown).
     bar = None
     if progress:
-        bar = ProgressBarCallback() if sys.stderr.isatty() else LogProgress(progress)
+        if not sys.stderr.isatty():
+            bar = LogProgress(progress, time_left=time_left)
+        else:
+            bar = ProgressBarCallback() if time_left is None else BudgetBar(time_left)
     model.set_logger(quiet_logger(model.verbose))
     try:
         model.learn(

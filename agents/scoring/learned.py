@@ -58,7 +58,8 @@ def solved_note(run_dir: Path, limit: str | None) -> str:
             return f"not solved in {limit} (best evaluation kept)"
         best = max(candidates, key=lambda c: c["rate"])
         return (
-            f"not solved in {limit}: {len(candidates)} candidates met the rule, "
+            f"not solved in {limit}: {len(candidates)} candidate"
+            f"{'s' if len(candidates) > 1 else ''} met the rule, "
             f"none confirmed (the best {confirmed_text(best)}; kept)"
         )
     solved = json.loads(path.read_text())

@@ -266,9 +266,12 @@ def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
         json.dumps([{**record, "successes": 176, "rate": 0.88}])
     )
     assert solved_note(tmp_path, "600 s") == (
-        "not solved in 600 s: 1 candidates met the rule, none confirmed (the best 176 of "
+        "not solved in 600 s: 1 candidate met the rule, none confirmed (the best 176 of "
         "200 fresh starts (88 %, 95 % [91, 97]); kept)"
     )
+    two = [{**record, "successes": 176, "rate": 0.88}, {**record, "successes": 170, "rate": 0.85}]
+    (tmp_path / "confirmations.json").write_text(json.dumps(two))
+    assert solved_note(tmp_path, "600 s").startswith("not solved in 600 s: 2 candidates met")
     solved = {"seconds": 62.4, "timesteps": 310_000, "confirmed": record}
     (tmp_path / "solved.json").write_text(json.dumps(solved))
     assert solved_note(tmp_path, "600 s") == (

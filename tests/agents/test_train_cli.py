@@ -99,3 +99,29 @@ def test_progress_shows_in_logs_as_periodic_lines(tmp_path, capsys, monkeypatch)
     train(BEAD, "ppo", 512, n_envs=1, run_dir=tmp_path, progress=True)
     lines = [line for line in capsys.readouterr().err.splitlines() if "steps/s" in line]
     assert len(lines) >= 2 and "PPO on Lagrange/BeadOnRod-v1: 512/512 steps (100%)" in lines[-1]
+
+
+def test_a_budget_run_s_progress_counts_towards_its_time_not_its_step_cap():
+    """A budget run's step count is a cap (agents.learning.budget.BUDGET_STEPS_CAP) that the
+    time ends first: its line gives the steps trained and the budget's time left; a run
+    that its steps end first still counts towards them."""
+    import io
+    import time
+
+    from agents.learning.budget import BUDGET_STEPS_CAP
+    from agents.learning.callbacks import LogProgress
+
+    def line(total, done, seconds_left):
+        stream = io.StringIO()
+        log = LogProgress("PPO on X", stream, time_left=lambda: seconds_left)
+        log._total, log._first, log._start = total, 0, time.monotonic() - 10.0
+        log.num_timesteps = done  # 1,000 steps/s over the 10 s
+        log._line()
+        return stream.getvalue()
+
+    assert line(BUDGET_STEPS_CAP, 10_000, 90.0).strip() == (
+        "PPO on X: 10,000 steps, 1,000 steps/s, about 1.5 min left"
+    )
+    assert line(40_000, 10_000, 90.0).strip() == (
+        "PPO on X: 10,000/40,000 steps (25%), 1,000 steps/s, about 0.5 min left"
+    )
