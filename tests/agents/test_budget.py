@@ -227,6 +227,11 @@ def test_the_clock_keeps_back_an_evaluation_at_its_longest_and_the_saves(monkeyp
     # time limit: its time per step is scaled to the 800 steps it may take
     clock.evaluated(0.75, 0.25, [50] * 20)  # 200 vector steps at least, 2.5 ms each
     assert clock.evaluation_s() == pytest.approx(2.25)
+    # records that skipped drawing the learning curve (curves.PLOT_SECONDS) say nothing of
+    # those that draw it, nor of the end, which draws it: the most measured is kept back
+    clock.evaluated(0.55, 0.05, [50] * 20)
+    assert clock.evaluation_s() == pytest.approx(2.0 + 0.25)
+    assert clock.saves_s() == pytest.approx(2 * 0.25)
 
 
 def test_cli_takes_a_budget_and_says_so(tmp_path, capsys):
