@@ -41,10 +41,9 @@ the schedules decay over them as usual. A run that is solved early stops while i
 still high; one that trains to the end of its budget settles.
 
 Repeatability: a step budget (`--timesteps`) with the same seed trains the same agent on
-the same machine (tests/agents/test_budget.py); a wall-clock budget cannot, because
-where it stops depends on the machine's load. The stop at success is on a step schedule
-(evaluations every `--eval-freq` steps), so two runs that both reach it stop at the same
-step with the same agent.
+the same machine (tests/agents/test_budget.py); a wall-clock budget cannot: where it stops
+depends on the machine's load, and its learning rate decays over the budget's time, so two
+runs of the same seed differ from their first update on (docs/learning.md, "Repeatability").
 """
 
 from __future__ import annotations
