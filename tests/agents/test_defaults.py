@@ -21,7 +21,7 @@ from agents.learning.defaults import (
     reward_span,
 )
 from agents.learning.flat import flat_components, success_edges
-from agents.learning.shaping import EdgePotential, LQRPotential, SumPotential, TaskRewardVecEnv
+from agents.learning.shaping import LQRPotential, TaskRewardVecEnv
 from agents.learning.vecenv import make_envs
 
 FURUTA = "Examples/Furuta-v0"
@@ -197,69 +197,6 @@ def test_potential_falls_linearly_near_the_operating_point():
     assert at(1e-4) < 0.0
 
 
-def test_edge_potential_counts_distance_in_the_success_sets_edges():
-    # Furuta: success is |theta| < 0.05, |alpha_dot|, |theta_dot| < 0.3; the probe's edges
-    # are the grid's powers of 2 below those (2^-5, 2^-2, 2^-2), alpha has none (inf)
-    phi = EdgePotential(FURUTA, 0.5, 0.99, 500)
-    assert phi.names == ("theta", "alpha_dot", "theta_dot")
-    np.testing.assert_array_equal(phi.edge, [2.0**-5, 0.25, 0.25])
-
-    def at(theta=0.0, alpha=0.0, alpha_dot=0.0, theta_dot=0.0):
-        trig = [np.cos(alpha), np.sin(alpha), np.cos(theta), np.sin(theta)]
-        return phi(np.array([trig + [alpha_dot, theta_dot]]))[0]
-
-    w = phi.amplitude
-    assert at() == pytest.approx(0.0, abs=1e-12)
-    assert at(alpha=2.0) == pytest.approx(0.0, abs=1e-12)  # no edge along the arm's angle
-    # one component at its edge: z = 1, z / (z + 1) = 1/2, averaged over three components
-    assert at(alpha_dot=0.25) == pytest.approx(-w / 6)
-    assert at(alpha_dot=-0.25) == at(alpha_dot=0.25)
-    # every component at its edge: -W/2; far outside along all: towards -W
-    assert at(theta=2.0**-5, alpha_dot=0.25, theta_dot=0.25) == pytest.approx(-w / 2)
-    assert -w < at(theta=0.5, alpha_dot=30.0, theta_dot=30.0) < -0.95 * w
-    # it falls along a rate from the edge in, as the LQR potential falls along it
-    assert at(alpha_dot=0.5) < at(alpha_dot=0.25) < at(alpha_dot=0.1) < 0.0
-
-
-def test_edge_potential_prices_a_turn_that_lqr_s_potential_hardly_sees():
-    # the Segway example's success asks |psi_dot| < 0.1. LQR regulates the wheel rates
-    # (scale 1 rad/s), and a turn is their difference: riding at the goal's speed while
-    # turning at 0.1 rad/s (the wheels 0.33 rad/s apart once the reset has projected the
-    # state onto the rolling constraints) costs LQR's potential under 2 % of its range
-    # (measured 0.87 %), while the turn is past its edge (0.0625 on the probe's grid, z 1.6)
-    # and costs the edges' potential over 5 % of its own (measured 9.6 %: one of 8 terms)
-    import examples.segway as segway
-
-    edges, lqr = EdgePotential(segway.ID, 0.5, 0.98, 300), LQRPotential(segway.ID, 0.5, 0.98, 300)
-    env = gym.make(segway.ID)
-    obs, _ = env.reset(seed=0)
-    base = env.unwrapped
-    names = list(base.plant.state_names)
-    x0, _ = base.operating_point(obs)
-    goal = base.plant.goal_from_observation(obs[None])[0]
-    turning = x0.copy()
-    turning[names.index("phi_r_dot")] += 1.06
-    turning[names.index("phi_l_dot")] -= 1.06
-    turn, _ = env.reset(options={"state": turning, "goal": goal})
-    assert abs(base.plant.state_from_observation(turn[None])[0, names.index("psi_dot")]) > 0.099
-    assert 0.0 < -lqr(turn[None])[0] < 0.02 * lqr.amplitude
-    assert -edges(turn[None])[0] > 0.05 * edges.amplitude
-
-
-def test_training_sums_the_potentials_it_is_asked_for():
-    hp = {**hparams.load("ppo", FURUTA), "normalize": False}
-    both, _ = make_envs(FURUTA, {**hp, "shaping": {"lqr": 0.5, "edges": 0.5}}, 2, 0, "auto", 1)
-    alone, _ = make_envs(FURUTA, {**hp, "shaping": {"edges": 0.5}}, 2, 0, "auto", 1)
-    assert isinstance(both.potential, SumPotential)
-    assert isinstance(alone.potential, EdgePotential)
-    obs = both.reset()
-    lqr, edge = both.potential.terms
-    np.testing.assert_allclose(both.potential(obs), lqr(obs) + edge(obs))
-    assert "success-edge potential 0.5" in describe({"shaping": {"edges": 0.5}})
-    assert hparams.check_entries({"shaping": {"edges": 0.5}}, "f") == {"shaping": {"edges": 0.5}}
-    both.close(), alone.close()
-
-
 def test_flat_reward_probe_finds_the_furutas_flat_angle_and_not_the_arms():
     furuta = success_edges(FURUTA)
     assert furuta.inside
@@ -317,9 +254,7 @@ def test_flat_reward_warning_names_the_remedy_the_training_has():
     [{"lqr": 0.5, "bonus": 0.1}, {}, {"success": -1.0}, {"success": float("nan")}, 0.5],
 )
 def test_a_bad_shaping_setting_names_its_form(shaping):
-    with pytest.raises(
-        hparams.UserError, match=r"shaping must be \{lqr: W, edges: E, success: B\}"
-    ):
+    with pytest.raises(hparams.UserError, match=r"shaping must be \{lqr: W, edges: E, success: B\}"):
         hparams.check_entries({"shaping": shaping}, "my.yml (default)")
     assert hparams.check_entries({"shaping": {"success": 0.2}}, "f") == {
         "shaping": {"success": 0.2}
