@@ -162,10 +162,8 @@ def describe(hp: dict, lqr: bool = True) -> str:
         parts.append("no LQR potential (LQR refused this env)")
     elif shaping.get("lqr"):
         parts.append(f"LQR potential shaping {shaping['lqr']:g}")
-    if shaping.get("edges"):
-        parts.append(f"success-edge potential {shaping['edges']:g}")
     if shaping.get("success"):
         parts.append(f"success bonus {shaping['success']:g} a step")
-    if not ((shaping.get("lqr") and lqr) or shaping.get("edges") or shaping.get("success")):
+    if not ((shaping.get("lqr") and lqr) or shaping.get("success")):
         parts.append("no shaping")
     return ", ".join(parts)

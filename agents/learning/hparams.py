@@ -205,15 +205,13 @@ def _handover(v):
 
 def _shaping(v):
     form = Bad(
-        "{lqr: W, edges: E, success: B} (W, E in [0, 100]: the weights of the LQR potential "
-        "and of the success set's edges' potential; B in [0, 100]: the bonus per step inside "
-        "the success set; 0 turns any off, an absent key is 0)"
+        "{lqr: W, success: B} (W in [0, 100]: the LQR potential's weight; B in [0, 100]: "
+        "the bonus per step inside the success set; 0 turns either off, an absent key is 0)"
     )
-    keys = ("lqr", "edges", "success")
-    if not isinstance(v, dict) or not v or not set(v) <= set(keys):
+    if not isinstance(v, dict) or not v or not set(v) <= {"lqr", "success"}:
         raise form
     try:
-        return {k: real(0.0, 100.0)(v[k]) for k in keys if k in v}
+        return {k: real(0.0, 100.0)(v[k]) for k in ("lqr", "success") if k in v}
     except Bad:
         raise form from None
 

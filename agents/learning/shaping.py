@@ -22,20 +22,6 @@ A terminal state (failure, divergence) has Phi = 0 and a truncated episode's las
 own Phi, as the theorem asks; shaping then changes each episode's discounted return by
 gamma^T Phi(s_T) - Phi(s_0) and leaves the optimal policy unchanged, while a reward that is
 flat near the goal gets a slope towards it.
-
-The LQR potential prices each component by LQR's weights, which say nothing of the success
-set: on the Segway example it is blind to the yaw rate (psi' is not among LQR's states),
-and on the three-link arm a step from the edge of the set to its centre along a rate is
-worth 0.003 of one episode's potential range. `EdgePotential` is a second potential in the
-success set's own units, summed with the first:
-
-    Phi_e(s) = -W_e mean_i z_i / (z_i + 1),    z_i = |x_i - x0_i| / edge_i
-
-over the components along which the set has a finite edge (agents.learning.flat's probe
-from the operating point), W_e as W. It is 0 at the operating point, -W_e/2 with every
-component at its edge, and flat beyond a few edges, where the LQR potential leads: it is a
-slope along every condition of the success set, the rates included, where the agent has to
-enter it.
 """
 
 from __future__ import annotations
@@ -46,12 +32,10 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from dynamics import wrap
 from envs.checks import Unsupported
 
 from ..common import lagrange_env, spec
 from ..control.lqr_policy import LQRPolicy
-from .flat import success_edges
 
 START_SAMPLES = 64
 """Starts drawn (seeds 0..63 of a separate env) to measure V_start."""
@@ -107,50 +91,6 @@ class LQRPotential:
         return -self.amplitude * ratio
 
 
-class EdgePotential:
-    """Phi_e(obs) = -W_e mean_i z_i / (z_i + 1), z_i = |x_i - x0_i| / edge_i, for batches
-    of observations of `env_id` (see the module docstring). ValueError where the success
-    set has no finite edge or does not contain the operating point."""
-
-    def __init__(self, env_id: str, weight: float, gamma: float, horizon: int):
-        edges = success_edges(env_id)
-        if not edges.inside:
-            raise ValueError("the task's operating point is not in its success set.")
-        keep = np.flatnonzero(np.isfinite(edges.edge) & (edges.edge > 0))
-        if not len(keep):
-            raise ValueError("the success set has no finite edge along any state component.")
-        self.env = lagrange_env(gym.make(spec(env_id)))
-        self.names = tuple(edges.names[i] for i in keep)
-        self.keep, self.edge = keep, edges.edge[keep]
-        self._periodic = np.flatnonzero(np.asarray(self.env.periodic, dtype=bool))  # of q
-        self.amplitude = weight * discounted_steps(gamma, horizon)
-
-    def distances(self, obs: np.ndarray) -> np.ndarray:
-        """z (N, kept components): |x - x0| in units of the success set's edges."""
-        obs = np.asarray(obs, dtype=np.float64).reshape(len(obs), -1)
-        x = self.env.state_from_observation(obs)
-        x0, _ = self.env.operating_point(obs)
-        dx = x - x0
-        dx[:, self._periodic] = wrap(dx[:, self._periodic])
-        return np.abs(dx[:, self.keep]) / self.edge
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        z = self.distances(obs)
-        with np.errstate(invalid="ignore"):
-            ratio = np.where(np.isfinite(z), z / (z + 1.0), 1.0)
-        return -self.amplitude * ratio.mean(axis=1)
-
-
-class SumPotential:
-    """The sum of potentials (each maps a batch of observations to (N,) values)."""
-
-    def __init__(self, *terms):
-        self.terms = terms
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return sum(term(obs) for term in self.terms)
-
-
 def discounted_steps(gamma: float, horizon: int) -> float:
     """sum of gamma^k for k < horizon: (1 - gamma^H) / (1 - gamma), and H at gamma = 1
     (the undiscounted limit, which that quotient leaves undefined)."""
@@ -160,21 +100,11 @@ def discounted_steps(gamma: float, horizon: int) -> float:
 def lqr_potential(env_id: str, weight: float, gamma: float, horizon: int):
     """The LQR potential of `env_id`, or None (with a warning saying why) where LQR cannot
     be designed there (time-dependent dynamics, an operating point it cannot hold, ...)."""
-    return _potential(LQRPotential, "LQR", env_id, weight, gamma, horizon)
-
-
-def edge_potential(env_id: str, weight: float, gamma: float, horizon: int):
-    """The success set's potential of `env_id`, or None (with a warning saying why) where
-    the set has no edge to measure from the operating point."""
-    return _potential(EdgePotential, "success-edge", env_id, weight, gamma, horizon)
-
-
-def _potential(kind, name: str, env_id: str, *args):
     try:
-        return kind(env_id, *args)
+        return LQRPotential(env_id, weight, gamma, horizon)
     except (Unsupported, ValueError, np.linalg.LinAlgError) as exc:
         warnings.warn(
-            f"No {name} shaping for {env_id}: {' '.join(str(exc).split())[:200]}", stacklevel=3
+            f"No LQR shaping for {env_id}: {' '.join(str(exc).split())[:200]}", stacklevel=2
         )
         return None
 

@@ -178,28 +178,26 @@ def _normalize_kwargs(hp: dict) -> dict | None:
 
 
 def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
-    """`venv` with the reward scale, the potentials (LQR's, the success set's edges') and
-    the success bonus the hyperparameters ask for (agents.learning.shaping; the registered
-    reward is untouched), or `venv` itself.
+    """`venv` with the reward scale, LQR shaping and success bonus the hyperparameters ask
+    for (agents.learning.shaping; the registered reward is untouched), or `venv` itself.
     (Whether the task's reward is flat inside its success set is said where it matters, in
     the diagnosis of an agent that misses the set: agents.scoring.diagnosis, from the probe
     of agents.learning.flat.)"""
     from ..common import task_of
     from .defaults import episode_steps
-    from .shaping import SumPotential, TaskRewardVecEnv, edge_potential, lqr_potential
+    from .shaping import TaskRewardVecEnv, lqr_potential
 
     scale = float(hp.get("reward_scale", 1.0))
-    shaping = hp.get("shaping") or {}
-    weights = {k: float(shaping.get(k, 0.0)) for k in ("lqr", "edges", "success")}
-    if scale == 1.0 and not any(weights.values()):
+    weight = float((hp.get("shaping") or {}).get("lqr", 0.0))
+    bonus = float((hp.get("shaping") or {}).get("success", 0.0))
+    if scale == 1.0 and not weight and not bonus:
         return venv
     gamma = float(hp.get("gamma", 0.99))
-    horizon = episode_steps(env_id, task_of(env_id))
-    makers = {"lqr": lqr_potential, "edges": edge_potential}
-    terms = [makers[k](env_id, weights[k], gamma, horizon) for k in makers if weights[k]]
-    terms = [t for t in terms if t is not None]
-    potential = terms[0] if len(terms) == 1 else (SumPotential(*terms) if terms else None)
-    return TaskRewardVecEnv(venv, scale, potential, gamma, weights["success"])
+    potential = None
+    if weight:
+        horizon = episode_steps(env_id, task_of(env_id))
+        potential = lqr_potential(env_id, weight, gamma, horizon)
+    return TaskRewardVecEnv(venv, scale, potential, gamma, bonus)
 
 
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):

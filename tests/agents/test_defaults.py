@@ -254,7 +254,7 @@ def test_flat_reward_warning_names_the_remedy_the_training_has():
     [{"lqr": 0.5, "bonus": 0.1}, {}, {"success": -1.0}, {"success": float("nan")}, 0.5],
 )
 def test_a_bad_shaping_setting_names_its_form(shaping):
-    with pytest.raises(hparams.UserError, match=r"shaping must be \{lqr: W, edges: E, success: B\}"):
+    with pytest.raises(hparams.UserError, match=r"shaping must be \{lqr: W, success: B\}"):
         hparams.check_entries({"shaping": shaping}, "my.yml (default)")
     assert hparams.check_entries({"shaping": {"success": 0.2}}, "f") == {
         "shaping": {"success": 0.2}
