@@ -56,6 +56,7 @@ MANAGED_KEYS = (
     "randomize",
     "reward_scale",
     "shaping",
+    "feedforward",
 )
 
 
@@ -234,6 +235,7 @@ RULES = {
     "randomize": optional(_randomize),
     "reward_scale": real(0.0, 1e6, open_low=True),
     "shaping": optional(_shaping),
+    "feedforward": true_or_false,
     "gamma": real(0.0, 1.0, open_low=True),
     "gae_lambda": _fraction,
     "learning_rate": schedule_of(real(0.0, 1.0, open_low=True)),

@@ -218,6 +218,10 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
         check = {k: handover[k] for k in ("verify", "verify_level")}
         train_env = HandOverVecEnv(train_env, handover["level"], handover["shaping"], gamma)
         eval_env = HandOverVecEnv(eval_env, handover["level"], **check)
+    if hp.get("feedforward"):  # the agent's action around the operating input
+        from .feedforward import FeedForwardVecEnv
+
+        train_env, eval_env = FeedForwardVecEnv(train_env), FeedForwardVecEnv(eval_env)
     # the scale applies to everything the agent is paid, the hand-over's shaping included
     train_env = task_reward(train_env, env_id, hp)
     if train_env.__class__.__name__ == "TaskRewardVecEnv":  # SB3 syncs the statistics

@@ -19,6 +19,7 @@ class SB3Policy:
         self.obs_rms = obs_rms
         self.clip_obs, self.epsilon = clip_obs, epsilon
         self.handover: dict | None = None  # the run's LQR hand-over (agents.control.handover)
+        self.feedforward = False  # the run's feed-forward (agents.learning.feedforward)
 
     @classmethod
     def load(cls, path: str | Path, env=None) -> SB3Policy:
@@ -65,10 +66,11 @@ class SB3Policy:
                     )
                 policy = cls(model, vecnorm.obs_rms, vecnorm.clip_obs, vecnorm.epsilon)
         policy.handover = (run.get("hyperparams") or {}).get("handover")
+        policy.feedforward = bool((run.get("hyperparams") or {}).get("feedforward"))
         return policy
 
     @classmethod
-    def of_model(cls, model, handover: dict | None = None) -> SB3Policy:
+    def of_model(cls, model, handover: dict | None = None, feedforward=False) -> SB3Policy:
         """The policy of a model in training, with a copy of its normalisation statistics
         as they are now (what a save would write) and the run's hand-over."""
         import copy
@@ -78,7 +80,7 @@ class SB3Policy:
         if vecnorm is not None and vecnorm.norm_obs:
             rms = copy.deepcopy(vecnorm.obs_rms)
             policy = cls(model, rms, vecnorm.clip_obs, vecnorm.epsilon)
-        policy.handover = handover
+        policy.handover, policy.feedforward = handover, bool(feedforward)
         return policy
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
@@ -94,7 +96,14 @@ class SB3Policy:
 
 def with_handover(policy: SB3Policy, env):
     """`policy` acting as it was trained to: handing over to LQR where its run declares a
-    hand-over (agents.control.handover), built for `env`."""
+    hand-over (agents.control.handover) and adding its feed-forward
+    (agents.learning.feedforward), built for `env`."""
+    if policy.feedforward:
+        from ..learning.feedforward import FeedForwardPolicy
+
+        acting = FeedForwardPolicy(policy, env)
+        acting.handover = policy.handover
+        policy = acting
     if policy.handover is None:
         return policy
     from ..control.handover import HandOverPolicy, handover_options
