@@ -142,6 +142,19 @@ def lagrange_env(env):
     return base
 
 
+def lagrange_of(venv):
+    """The Lagrange env under SB3 vector wrappers (a native vector env, or the first env
+    of a DummyVecEnv / SubprocVecEnv-like)."""
+    inner = venv
+    while True:
+        if hasattr(inner, "envs"):
+            return lagrange_env(inner.envs[0])
+        nxt = getattr(inner, "venv", None)
+        if nxt is None:
+            return lagrange_env(inner)
+        inner = nxt
+
+
 def set_torch_threads(n: int = DEFAULT_TORCH_THREADS) -> None:
     """Limit torch's intra-op threads (small MLPs on a shared box are faster on one)."""
     import torch

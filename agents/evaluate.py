@@ -100,7 +100,12 @@ def evaluate(
     policies = []
 
     def build(venv):
-        policy = make_agent(agent, venv, seed) if isinstance(agent, str) else agent
+        if isinstance(agent, str):
+            policy = make_agent(agent, venv, seed)
+        elif isinstance(agent, SB3Policy):  # acting as it was trained to, for this venv
+            policy = with_handover(agent, venv)
+        else:
+            policy = agent
         check_policy_fits(policy, venv)
         policies.append(policy)
         return policy

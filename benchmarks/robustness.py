@@ -180,14 +180,11 @@ def agents_of(env_id: str, wanted: list[str], models: Path, train: bool, log) ->
 
 
 def _trained_maker(policy):
-    """venv -> the trained policy, with its run's LQR hand-over (agents.control.handover) built for
-    that venv where it was trained with one (as agents.evaluate acts)."""
-    if policy.handover is None:
-        return lambda venv: policy
-    from agents.control.handover import HandOverPolicy, handover_options
+    """venv -> the trained policy acting as agents.evaluate makes it act: with its run's LQR
+    hand-over and feed-forward built for that venv (agents.scoring.trained.with_handover)."""
+    from agents.scoring.trained import with_handover
 
-    h = handover_options(policy.handover)
-    return lambda venv: HandOverPolicy(policy, venv, h["level"], h["verify"], h["verify_level"])
+    return lambda venv: with_handover(policy, venv)
 
 
 def _plan_maker():

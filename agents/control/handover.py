@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from ..common import UserError, lagrange_env
+from ..common import UserError, lagrange_env, lagrange_of
 from .lqr_policy import LQRPolicy
 
 HANDOVER_KEYS = ("level", "shaping", "verify", "verify_level")
@@ -175,18 +175,6 @@ class HandOverPolicy:
         return a.reshape(np.shape(actions)), state
 
 
-def _lagrange_of(venv: VecEnv):
-    """The Lagrange env under SB3 wrappers (a native vector env or DummyVecEnv's first)."""
-    inner = venv
-    while True:
-        if hasattr(inner, "envs"):  # DummyVecEnv / SubprocVecEnv-like
-            return lagrange_env(inner.envs[0])
-        nxt = getattr(inner, "venv", None)
-        if nxt is None:
-            return lagrange_env(inner)
-        inner = nxt
-
-
 class HandOverVecEnv(VecEnvWrapper):
     """Training env: LQR overrides the agent's actions inside the capture set (training
     passes no `verify`; the evaluation env does), and the reward adds the potential-based
@@ -205,7 +193,7 @@ class HandOverVecEnv(VecEnvWrapper):
     ):
         super().__init__(venv)
         self.capture = CaptureSet(
-            _lagrange_of(venv), level, verify=verify, verify_level=verify_level
+            lagrange_of(venv), level, verify=verify, verify_level=verify_level
         )
         self.shaping, self.gamma = float(shaping), float(gamma)
         self._obs: np.ndarray | None = None

@@ -1,20 +1,38 @@
-"""The operating input as a feed-forward: the agent's action is added to the action that
-holds the task's operating point (u0 of the goal in each observation, in the env's
-normalised action units), and the sum is clipped to [-1, 1]. A goal-conditioned task that
-holds against gravity then asks the policy for a correction around the holding torque, not
-for the holding torque itself: a policy whose resting action misses it by a few hundredths
-of the action range rests that far from the goal (the three-link arm example's misses).
+"""The holding input as a feed-forward: the agent's action is added to the action that holds
+the current configuration at rest (the plant's operating input of the observed state with
+its rates zeroed: gravity's and the springs' torque, in the env's normalised action units),
+and the sum is clipped to [-1, 1]. A goal-conditioned task that holds against gravity then
+asks the policy for a correction that is zero at the goal whatever the goal, not for the
+holding torque itself: a policy whose resting action misses that torque by a few
+hundredths of the action range rests that far from the goal (the three-link arm example's
+misses, docs/learning.md).
 
-`FeedForwardVecEnv` adds it in training and in training's evaluations (inside the LQR
-hand-over, which overrides the sum where it acts); `FeedForwardPolicy` adds it to a loaded
-agent's actions (agents.scoring.trained)."""
+It is a derived default (agents.learning.defaults) where `holds_at_rest`: the inputs can
+hold every configuration at rest. `FeedForwardVecEnv` adds it in training and in
+training's evaluations (inside the LQR hand-over, which overrides the sum where it acts);
+`FeedForwardPolicy` adds it to a loaded agent's actions (agents.scoring.trained)."""
 
 from __future__ import annotations
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from ..common import lagrange_env
+from ..common import lagrange_env, lagrange_of
+
+
+def holds_at_rest(plant) -> bool:
+    """Whether the plant's inputs hold every configuration at rest, at every time: as many
+    actuated inputs as coordinates, no constraint, dynamics that do not depend on time, and
+    the operating input zeroes the accelerations at the plant's sample states at rest."""
+    s = plant.system
+    if s.n_c or len(plant.actuated) != s.n_q or plant.time_dependent:
+        return False
+    x = plant.sample_states(4).copy()
+    x[:, s.n_q :] = 0.0
+    a0 = s.accelerations(0.0, x, np.zeros((len(x), s.n_u)))
+    a = s.accelerations(0.0, x, plant.operating_input(x))
+    # round-off of one pseudo-inverse against the accelerations the inputs cancel
+    return bool(np.all(np.abs(a) <= 1e-8 * (1.0 + np.abs(a0).max())))
 
 
 def operating_action(env, obs: np.ndarray) -> np.ndarray:
@@ -34,9 +52,7 @@ class FeedForwardVecEnv(VecEnvWrapper):
 
     def __init__(self, venv: VecEnv):
         super().__init__(venv)
-        from ..control.handover import _lagrange_of
-
-        self.env = _lagrange_of(venv)
+        self.env = lagrange_of(venv)
         self._obs: np.ndarray | None = None
 
     def reset(self):

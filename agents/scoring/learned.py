@@ -118,7 +118,9 @@ def alone_rows(programs, env_id, algo, model_path, episodes, seed, log):
         share = policy.lqr_steps / max(policy.steps, 1)
     finally:
         venv.close()
-    alone = programs.evaluate(env_id, SB3Policy.load(model_path), episodes, seed)
+    agent = SB3Policy.load(model_path)
+    agent.handover = None  # its own actions everywhere (its feed-forward, if any, kept)
+    alone = programs.evaluate(env_id, agent, episodes, seed)
     name = f"{algo} alone"
     log(f"  {name:>9}: {alone.summary()}")
     note = f"LQR acted in {share:.0%} of the steps; {inside} of {episodes} starts inside its set"

@@ -74,6 +74,12 @@ def test_a_loaded_agent_acts_with_it(tmp_path):
     expected = np.clip(raw + operating_action(lagrange_env(env), obs), -1, 1)
     np.testing.assert_allclose(acted, expected, rtol=1e-6)
     env.close()
+    # a loaded policy object handed to evaluate acts as the run's path does: with it
+    from agents.evaluate import evaluate
+    from agents.scoring.trained import SB3Policy
+
+    by_path, by_object = evaluate(ARM, str(run), 2, 5), evaluate(ARM, SB3Policy.load(run), 2, 5)
+    np.testing.assert_array_equal(by_path.returns, by_object.returns)
 
 
 @pytest.mark.parametrize("value", ["yes", 1, None])
@@ -81,3 +87,36 @@ def test_feedforward_is_true_or_false(value):
     with pytest.raises(hparams.UserError, match="feedforward"):
         hparams.check_entries({"feedforward": value}, "my.yml (default)")
     assert hparams.check_entries({"feedforward": True}, "f") == {"feedforward": True}
+
+
+@pytest.mark.parametrize(
+    "env_id, holds",
+    [
+        (ARM, True),  # three motors, three joints
+        ("Lagrange/TwoLinkArm-v1", True),
+        ("Lagrange/CrankSlider-v1", True),  # one motor, one coordinate
+        ("Lagrange/Acrobot-v2", False),  # two inputs declared, the shoulder's not actuated
+        ("Examples/Kapitza-v0", False),  # one motor, but its pivot is driven in time
+        ("Lagrange/RollingDisk-v1", False),  # rolling constraints
+        ("Lagrange/BeadOnRod-v1", False),  # the bead is not actuated
+    ],
+)
+def test_it_is_derived_where_the_inputs_hold_every_configuration_at_rest(env_id, holds):
+    import examples.kapitza  # noqa: F401
+    from agents.learning.feedforward import holds_at_rest
+
+    env = gym.make(env_id)
+    assert holds_at_rest(env.unwrapped.plant) is holds
+    env.close()
+    assert bool(hparams.load("ppo", env_id).get("feedforward")) is holds
+
+
+def test_a_users_file_turns_it_off(tmp_path):
+    from agents.learning.defaults import describe
+
+    yml = tmp_path / "off.yml"
+    yml.write_text(f"{ARM}:\n  feedforward: false\n")
+    assert "holding input fed forward" in describe(hparams.load("ppo", ARM))
+    hp = hparams.load("ppo", ARM, yml)
+    assert hp["feedforward"] is False
+    assert "fed forward" not in describe(hp)
