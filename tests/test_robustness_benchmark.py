@@ -138,15 +138,22 @@ def test_each_perturbation_point_makes_its_env_with_the_agreed_option(bench, tmp
 
 @pytest.mark.slow  # designs the acrobot's LQR and its capture set
 def test_a_policy_trained_with_a_hand_over_acts_with_it(bench):
-    """As agents.evaluate acts: the acrobot's PPO hands over to LQR (on the nominal model)."""
+    """As agents.evaluate acts: the acrobot's PPO hands over to LQR (on the nominal model),
+    and a run trained with the holding input fed forward acts with it."""
     from agents.common import task_of
     from agents.control.handover import HandOverPolicy
+    from agents.learning.feedforward import FeedForwardPolicy
 
-    class Trained:
+    class Trained:  # an SB3Policy's two settings from its run
         handover = task_of(ACROBOT).hyperparams["ppo"]["handover"]
+        feedforward = False
 
     plain = Trained()
     plain.handover = None
     venv = bench._vec(ACROBOT, 2, randomize={})
     assert isinstance(bench._trained_maker(Trained())(venv), HandOverPolicy)
     assert bench._trained_maker(plain)(venv) is plain
+    fed = Trained()
+    fed.handover, fed.feedforward = None, True
+    acting = bench._trained_maker(fed)(venv)
+    assert isinstance(acting, FeedForwardPolicy) and acting.policy is fed
