@@ -18,20 +18,15 @@ What a task declares sets up its learner (`derived`):
   F = gamma Phi(s') - Phi(s) leaves the optimal policy unchanged and gives a reward that
   is flat near the goal a slope to follow. Where the operating point is a function of the
   state (the Segway example rides along its heading) the potential designs LQR row by row:
-  PPO then steps slower (the operating point is solved for every row at every step), and
-  learns more per step (seed 0, 10 minutes: 55 % of 20 episodes shaped, 10 %
-  without), so it is derived there too.
+  PPO then steps slower (the operating point is solved for every row at every step) and
+  learns more per step, so it is derived there too.
 - **success bonus**: `SUCCESS_BONUS` (a tenth of one step's reward range) at every step
   whose state is in the task's success set (`shaping: {success: B}`). Unlike the potential
   it changes what is optimal, towards the set the check scores: a user's reward is often
   nearly flat there (the Segway's turn term, -0.1 psi_dot^2, prices a turn of 1 rad/s at
-  0.2 % of a step's range while success asks |psi_dot| < 0.1; its agents rode while
-  turning). PPO, 10 minutes, the nine examples without a hand-over, three seeds each
-  (2026-11-26): a tenth and half of a step's range each bring 25 of the 27 runs to 80 %;
-  a tenth misses the Segway's seeds 0 and 2 (55 %, 0 %: seed 2 never enters the set), half
-  the Segway's seed 0 and the VTOL's seed 0 (70 %, 35 %; a tenth: 90 %). The smaller is
-  kept: it moves the user's optimum less, and `agents.check`'s seed 0 then misses only
-  the Segway.
+  0.2 % of a step's range while success asks |psi_dot| < 0.1). Of the sizes measured, a
+  tenth and a half of a step's range did alike; the smaller is kept, as it moves the
+  user's optimum less.
 - **copies** (on-policy learners, PPO): a goal-conditioned task's policy must learn how its
   action depends on the goal, and one PPO update sees the goals of the episodes in one
   rollout, about one episode per copy at the default 256 steps a copy. So a task whose
@@ -39,19 +34,19 @@ What a task declares sets up its learner (`derived`):
   `GOALS_PER_COMPONENT`^d copies, as many goals an update as a grid of four values per
   component (16 for d = 2, 64 for d = 3; the YAML default's 8 for d <= 1), with the
   minibatch grown alike so an update takes as many gradient steps (`rollout`). Wherever
-  the task, the YAML's entry or the user's file sets n_envs, theirs stands. The runs
-  behind the rule: docs/learning.md, "Precision and goal-conditioned tasks".
+  the task, the YAML's entry or the user's file sets n_envs, theirs stands.
 - **feed-forward** (`feedforward: true`) wherever the inputs can hold every configuration
   at rest (as many motors as coordinates, no constraint, no explicit time: a multi-link
   arm, the crank): the agent's action is added to the one that holds the current
   configuration at rest (`agents.learning.feedforward`), so its action at any goal is zero.
-  PPO, 600 s, the three-link arm example: never solved in nine runs without, seeds 0, 1,
-  2 solved after 180-297 s with it (docs/learning.md).
 - **actions** are already scaled to [-1, 1] from the declared input limits (the env);
   **observations** are standardised by VecNormalize's running statistics and clipped to
   the declared bounds by the env. Dividing by the declared bounds instead was not used:
   they are divergence limits (40 rad/s on the Furuta example's rates, where its motion
   stays within 1 rad/s), so that scale would squeeze the useful range to a few per cent.
+
+The runs behind each rule: docs/learning.md ("What the learner derives from the task",
+"Precision and goal-conditioned tasks").
 
 The layers (agents.learning.hparams.load): the algorithm's YAML `default`, then these derived
 values, then the task's own `hyperparams`, then the YAML's entry for the env id, then a

@@ -45,6 +45,13 @@ def operating_action(env, obs: np.ndarray) -> np.ndarray:
     return np.clip(env.input_to_action(u), -1.0, 1.0)
 
 
+def fed_forward(env, obs: np.ndarray, actions) -> np.ndarray:
+    """(N, n_a) float32: `actions` plus `operating_action` of each row of `obs`, clipped to
+    [-1, 1]."""
+    a = np.asarray(actions, dtype=np.float64) + operating_action(env, obs)
+    return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
 class FeedForwardVecEnv(VecEnvWrapper):
     """Training env whose actions are the agent's plus `operating_action` of the last
     observation (see the module docstring). Goes inside VecNormalize: it reads raw
@@ -60,8 +67,7 @@ class FeedForwardVecEnv(VecEnvWrapper):
         return self._obs
 
     def step_async(self, actions: np.ndarray) -> None:
-        a = np.asarray(actions, dtype=np.float64) + operating_action(self.env, self._obs)
-        self.venv.step_async(np.clip(a, -1.0, 1.0).astype(np.float32))
+        self.venv.step_async(fed_forward(self.env, self._obs, actions))
 
     def step_wait(self):
         obs, rewards, dones, infos = self.venv.step_wait()
@@ -78,7 +84,6 @@ class FeedForwardPolicy:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         a, state = self.policy.predict(observation, state, episode_start, deterministic)
         obs = np.asarray(observation)
-        single = obs.ndim == 1
-        a0 = operating_action(self.env, obs[None] if single else obs)
-        out = np.clip(np.asarray(a, dtype=np.float64) + (a0[0] if single else a0), -1.0, 1.0)
-        return out.astype(np.float32), state
+        if obs.ndim == 1:  # one observation
+            return fed_forward(self.env, obs[None], np.asarray(a)[None])[0], state
+        return fed_forward(self.env, obs, a), state

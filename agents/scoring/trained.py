@@ -98,18 +98,17 @@ def with_handover(policy: SB3Policy, env):
     """`policy` acting as it was trained to: handing over to LQR where its run declares a
     hand-over (agents.control.handover) and adding its feed-forward
     (agents.learning.feedforward), built for `env`."""
+    handover, acting = policy.handover, policy
     if policy.feedforward:
         from ..learning.feedforward import FeedForwardPolicy
 
         acting = FeedForwardPolicy(policy, env)
-        acting.handover = policy.handover
-        policy = acting
-    if policy.handover is None:
-        return policy
+    if handover is None:
+        return acting
     from ..control.handover import HandOverPolicy, handover_options
 
-    h = handover_options(policy.handover)
-    return HandOverPolicy(policy, env, h["level"], h["verify"], h["verify_level"])
+    h = handover_options(handover)
+    return HandOverPolicy(acting, env, h["level"], h["verify"], h["verify_level"])
 
 
 def _env_id(env) -> str | None:
