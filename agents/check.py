@@ -215,7 +215,7 @@ def check_env(
     notes = (
         randomization.describe(randomize) if randomize else "",
         lqr_note,
-        learned.solved_note(run_dir, limit if seconds else None),
+        *learned.verdict_notes(run_dir, limit if seconds else None, stats),
         learned.resumed_note(run_dir),
     )
     rows.append(Row(env_id, algo, stats, eval_s, "; ".join(filter(None, notes)), training, warm_s))

@@ -89,7 +89,7 @@ def default_systems() -> tuple[list[str], list[str]]:
 def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dict:
     """Train one learner on one system within the budget and score the kept model."""
     from agents import evaluate as programs
-    from agents.scoring.learned import alone_rows
+    from agents.scoring.learned import alone_rows, chance_note
     from agents.train import train
 
     env_id = check_env_id(system, lagrange=True)
@@ -106,6 +106,7 @@ def run_one(system: str, algo: str, seed: int, seconds: float, out: Path) -> dic
     elif alone:  # every start outside it: the hand-over's, beside the agent alone
         note = f"agent alone {alone[0].stats.success_rate:.0%}; {note}"
     k, n = int(stats.successes.sum()), len(stats.successes)
+    note = "; ".join(filter(None, (note, chance_note(run_dir, k, n))))
     interval = wilson_interval(k, n)
     solved = result.solved or {}
     return {

@@ -21,6 +21,10 @@ import numpy as np
 from ..common import env_slug, spec
 from ..learning.budget import SOLVED_RATE
 
+CHANCE = 0.001
+"""A confirmed agent scoring as few successes as the report's less often than this is
+reported as beyond chance (`chance_note`)."""
+
 
 def warm_evaluate(evaluate, env_id: str, agent: str, episodes: int, seed: int):
     """(stats, evaluation seconds, warm-up seconds) of `evaluate` (agents.evaluate's): one
@@ -67,6 +71,42 @@ def solved_note(run_dir: Path, limit: str | None) -> str:
     if "confirmed" in solved:
         note += f", confirmed on {confirmed_text(solved['confirmed'])}"
     return note
+
+
+def verdict_notes(run_dir: Path, limit: str | None, stats) -> tuple[str, str]:
+    """`solved_note` of the run and `chance_note` of its evaluation `stats` (the report's
+    episodes)."""
+    successes = np.asarray(stats.successes)
+    return solved_note(run_dir, limit), chance_note(run_dir, int(successes.sum()), len(successes))
+
+
+def chance_note(run_dir: Path, successes: int, episodes: int) -> str:
+    """Where a confirmed run's agent succeeds in fewer than `SOLVED_RATE` of the report's
+    `episodes`, how often an agent of the confirmed rate scores as few (scipy.stats.binom):
+    a confirmation and a small evaluation are two samples of one rate, and this says whether
+    they differ by chance or beyond it (under `CHANCE`: the two evaluations differ in what
+    they score, worth reporting). '' otherwise."""
+    import json
+
+    from scipy.stats import binom
+
+    path = Path(run_dir) / "solved.json"
+    if not episodes or successes >= SOLVED_RATE * episodes or not path.exists():
+        return ""
+    record = json.loads(path.read_text()).get("confirmed")
+    if not record:
+        return ""
+    p = float(binom.cdf(successes, episodes, record["rate"]))
+    head = (
+        f"{successes} of {episodes} here, below {SOLVED_RATE:.0%}: an agent of the confirmed "
+        f"rate ({record['rate']:.0%}) scores as few in "
+    )
+    if p < CHANCE:
+        return head + (
+            f"under {100 * CHANCE:g} % of evaluations of {episodes}; the confirmation and "
+            "these episodes disagree beyond chance: please report it"
+        )
+    return head + f"{100 * p:.2g} % of evaluations of {episodes}"
 
 
 def confirmed_text(record: dict) -> str:

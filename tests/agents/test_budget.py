@@ -285,6 +285,27 @@ def test_the_report_s_verdict_is_read_from_the_run_s_record(tmp_path):
     )
 
 
+def test_a_confirmed_run_below_the_bar_in_the_report_says_whether_that_is_chance(tmp_path):
+    from agents.scoring.learned import chance_note
+
+    assert chance_note(tmp_path, 15, 20) == ""  # no record: nothing to compare
+    record = {"successes": 184, "episodes": 200, "rate": 0.92, "wilson95": [0.874, 0.950]}
+    (tmp_path / "solved.json").write_text(json.dumps({"seconds": 68.4, "confirmed": record}))
+    assert chance_note(tmp_path, 16, 20) == ""  # at the bar: nothing to explain
+    # the planar VTOL's seed 2 (2026-11-28): confirmed on 184 of 200, then 15 of the check's
+    # 20; binom.cdf(15, 20, 0.92) = 0.018
+    assert chance_note(tmp_path, 15, 20) == (
+        "15 of 20 here, below 80%: an agent of the confirmed rate (92%) scores as few in 1.8 % "
+        "of evaluations of 20"
+    )
+    # 8 of 20 at a confirmed 92 %: binom.cdf = 4.7e-9, two evaluations that disagree
+    assert chance_note(tmp_path, 8, 20) == (
+        "8 of 20 here, below 80%: an agent of the confirmed rate (92%) scores as few in under "
+        "0.1 % of evaluations of 20; the confirmation and these episodes disagree beyond "
+        "chance: please report it"
+    )
+
+
 def test_a_confirmation_is_budgeted_as_an_evaluation_until_one_is_measured():
     # 20 s left, an evaluation of 5 envs x 4 episodes x 300 steps measured at 2 ms a step
     # (2.4 s at its longest, plus 0.75 s of records): a confirmation, one batched step per
