@@ -262,8 +262,9 @@ TASK = Task(
     ),
     hyperparams={
         "ppo": {
-            # a cap: the check stops once solved; budget runs reached 80 % at 490-920k steps
-            "n_timesteps": 1_000_000,
+            # a cap: the check stops once solved; its learning rate decays over the cap, and
+            # 1,000,000 left the check's run unconfirmed (CHANGELOG)
+            "n_timesteps": 1_500_000,
             "n_steps": 512,
             "gamma": 0.99,
             "policy_kwargs": {"net_arch": [128, 128], "log_std_init": -1.0},
