@@ -7,10 +7,11 @@ One YAML file per algorithm (agents/learning/hyperparams/<algo>.yml), RL Zoo sty
 entry for every env, and entries keyed by env id that override it (also for envs that are
 not Lagrange envs, such as Pendulum-v1). Keys the training program interprets itself:
 `n_timesteps` (default budget), `n_envs`, `policy`, `normalize` (bool or VecNormalize
-keyword arguments), `reward_scale` and `shaping` ({lqr: W}, agents.learning.shaping),
-`action_noise` ({type: normal, sigma: S}), `policy_kwargs` (with
-`activation_fn` by name), `handover` (agents.control.handover), `randomize` (physical parameters
-drawn at every reset of the training envs: agents.learning.randomization) and schedules
+keyword arguments, and `center`: agents.learning.uncentered), `reward_scale` and `shaping`
+({lqr: W}, agents.learning.shaping), `action_noise` ({type: normal, sigma: S}),
+`policy_kwargs` (with `activation_fn` by name), `handover` (agents.control.handover),
+`randomize` (physical parameters drawn at every reset of the training envs:
+agents.learning.randomization) and schedules
 written "lin_X" (linear decay from X to 0). Everything else goes to the algorithm.
 
 A bad value is a UserError of one line naming the file (or the task) and the key. YAML
@@ -164,6 +165,7 @@ _POLICY_KWARGS = {
     "n_quantiles": integer(1, 1000),
 }
 _NORMALIZE = {
+    "center": true_or_false,  # ours: subtract the running mean (SB3's way) or not
     "norm_obs": true_or_false,
     "norm_reward": true_or_false,
     "clip_obs": real(0.0, 1e6, open_low=True),

@@ -169,12 +169,12 @@ def make_sb3_vec_env(
 
 # ---- the training run's envs -------------------------------------------------------------
 def _normalize_kwargs(hp: dict) -> dict | None:
+    """VecNormalize's keyword arguments from `normalize` (None: no VecNormalize), with
+    `center` (default False: observations scaled about zero, agents.learning.uncentered)."""
     normalize = hp.get("normalize", False)
-    if normalize is True:
-        return {}
     if not normalize:
         return None
-    return dict(normalize)
+    return {"center": False, **(normalize if isinstance(normalize, dict) else {})}
 
 
 def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
@@ -201,7 +201,8 @@ def task_reward(venv: VecEnv, env_id: str, hp: dict) -> VecEnv:
 
 
 def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str, eval_envs: int):
-    """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks. With
+    """Training and evaluation VecEnvs, both wrapped in VecNormalize if the YAML asks (its
+    observations scaled about zero unless `center: true`). With
     the hyperparameter `randomize` (agents.learning.randomization) both draw their physical
     parameters at every reset: the evaluations during training score the distribution the
     agent is trained on."""
@@ -230,6 +231,11 @@ def make_envs(env_id: str, hp: dict, n_envs: int, seed: int, vectorization: str,
         eval_env = TaskRewardVecEnv(eval_env)  # the env's own rewards
     norm = _normalize_kwargs(hp)
     if norm is not None:
+        center = norm.pop("center")
         train_env = VecNormalize(train_env, **norm)
         eval_env = VecNormalize(eval_env, **{**norm, "training": False, "norm_reward": False})
+        if not center:
+            from .uncentered import uncentered
+
+            train_env, eval_env = uncentered(train_env), uncentered(eval_env)
     return train_env, eval_env
