@@ -80,6 +80,10 @@ def test_copies_grow_with_the_goals_drawn_for_on_policy_learners_only(tmp_path):
     mine = hparams.load("ppo", three.ID, own)
     assert mine["n_envs"] == 4 and mine["batch_size"] == 256  # a declared n_envs stands
     assert "64 copies" in describe(hp)
+    # the acrobot declares its 16 copies (a fixed goal would give the default's 8); its
+    # minibatch stays the YAML's 256, as it was measured: more minibatches per epoch
+    acro_hp = hparams.load("ppo", ACROBOT)
+    assert (acro_hp["n_envs"], acro_hp["batch_size"]) == (16, 256)
 
 
 def test_n_envs_asked_for_keeps_the_minibatches_per_epoch():
