@@ -194,10 +194,9 @@ TASK_V2 = dataclasses.replace(
         # the folded local optimum (link 2 balanced on a hanging link 1, tip height 0, a
         # quarter of the potential) where swinging costs rate penalty; at 300 none did. A
         # long horizon (gamma 0.998) and exploration (entropy, wide initial std) help too.
-        # 16 copies: the batched steps of 16 cost little more than of 8, and the runs took as
-        # many steps (600-700k; 10 min budget, seeds 0-2): solved after 81, 94 and 80 s, where
-        # 8 copies took 179 and 205 s and seed 2 was unsolved at 2M steps; with 32, seed 2
-        # stayed folded.
+        # 16 copies: a batched step of 16 costs less than twice one of 8, and the runs took
+        # about as many steps: in one session (10 min budget, seeds 0-2) solved after 81, 94
+        # and 80 s, against 99, 267 and 112 s with 8; with 32, seed 2 stayed folded.
         "ppo": swing_up_ppo(
             3_000_000, 0.998, {"level": 1000.0, "shaping": 300.0, "verify": 3.0}, n_envs=16
         ),
